@@ -1,0 +1,951 @@
+/* kdrt.h - v0.1.0 - kd-tree ray tracing over your own triangle buffers. Public domain-like (MIT-0).
+
+   USAGE
+     In exactly one C or C++ file, before including this header:
+
+         #define KDRT_IMPLEMENTATION
+         #include "kdrt.h"
+
+     Everywhere else include it plainly. Define KDRT_STATIC as well to make every function static
+     (private to that one file). The header needs only the C standard library (no libm).
+
+         kdrt_triangles mesh = {0};
+         mesh.positions = vertices;          // float x, y, z per vertex
+         mesh.position_stride = 0;           // bytes between vertices, 0 = packed (12)
+         mesh.vertex_count = vertex_count;
+         mesh.indices = indices;             // 3 per triangle, or NULL for a triangle soup
+         mesh.triangle_count = triangle_count;
+
+         kdrt_build_options options = kdrt_default_build_options();
+         kdrt_tree *tree = NULL;
+         kdrt_result r = kdrt_tree_build(&mesh, &options, &tree, NULL);
+         if (r != KDRT_SUCCESS) { fprintf(stderr, "kdrt: %s\n", kdrt_result_string(r)); ... }
+
+         kdrt_ray ray = {{ox, oy, oz}, 0.0f, {dx, dy, dz}, INFINITY};
+         kdrt_hit hit;
+         if (kdrt_intersect(tree, &ray, &hit)) { ... hit.t, hit.u, hit.v, hit.triangle ... }
+         if (kdrt_occluded(tree, &ray)) { ... }
+
+         kdrt_tree_free(tree);
+
+   CONFIGURATION (define before the implementation)
+     KDRT_STATIC              all functions static
+     KDRT_ASSERT(x)           internal invariant checks; default: assert() from <assert.h>
+     KDRT_MALLOC(size, user)  default allocator when options.allocator is all zero;
+     KDRT_FREE(ptr, user)     define both or neither (default: malloc and free)
+
+   OWNERSHIP
+     The tree borrows the caller's buffers: kdrt_triangles.positions and .indices must stay alive
+     and unchanged from kdrt_tree_build() until kdrt_tree_free(). The tree copies nothing of them;
+     it owns only its nodes and its list of triangle references. Moving or editing the vertices
+     requires a new build. The kdrt_triangles struct itself may be discarded after the build.
+
+   THREAD SAFETY
+     No global state. kdrt_intersect() and kdrt_occluded() read a const tree, allocate nothing and
+     may be called from any number of threads at once. Builds of different trees may run at once.
+
+   ERRORS
+     Functions that can fail return kdrt_result; kdrt_result_string() names each code. A failed
+     build frees everything it allocated and leaves *out_tree NULL. The library never prints,
+     never aborts on bad input and never calls exit(). Checked: NULL pointers, a stride under 12
+     bytes, indices out of range, NaN or infinite coordinates (error, or skipped with
+     KDRT_BUILD_SKIP_INVALID_TRIANGLES), counts beyond what the tree can address, and allocation
+     failure. Zero triangles is valid: the tree is empty and every ray misses.
+
+   QUERIES AND NUMERICAL GUARANTEES
+     A ray is org + t * dir for t in [max(tmin, 0), tmax]; dir need not be normalised. A ray with a
+     NaN or infinite origin or direction, an all-zero direction, or tmin > tmax misses everything.
+     kdrt_intersect() returns the nearest hit in that range. Equal distances are broken towards the
+     lower triangle index, so the result does not depend on the tree's shape: a tree of any leaf
+     size returns exactly what max_leaf_size = 0 (test every triangle) returns for the same ray.
+     Triangles are intersected with the Moeller-Trumbore test in single precision, with no epsilon:
+     a ray meeting a triangle exactly on its edge counts as a hit; degenerate (zero-area) triangles
+     are never hit. Hits are accepted wherever they are found and the traversal stops only once
+     every node nearer than the best hit has been visited, so a hit lying beyond the leaf it was
+     found in is never returned ahead of a nearer one. Split-plane distances are widened by a
+     bound on their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit
+     both sides, so rounding cannot make the traversal skip a node the ray passes through.
+     Barycentrics: the hit point is (1 - u - v) * p0 + u * p1 + v * p2.
+
+   THE TREE
+     KDRT_BUILDER_MEDIAN is the original course ray tracer's kd-tree, corrected: a node holding at
+     most max_leaf_size triangles is a leaf; otherwise it is split at the median triangle centroid
+     on its axis, which cycles x, y, z with depth; a triangle goes to every side it has a vertex
+     strictly inside (a triangle lying in the split plane goes below). If that axis leaves a child
+     as large as the node, the next axes of the cycle are tried, and if none separates anything the
+     node is a leaf. Triangles are sorted once per axis at the root and the children's lists are
+     filtered from their parent's in order, so a level costs O(n). Depth is bounded by
+     options.max_depth (at most KDRT_MAX_DEPTH), which bounds the traversal's fixed stack.
+     max_leaf_size = 0 means no tree: every query tests every triangle (the baseline of the
+     benchmark), through the same API.
+
+   LICENSE
+     MIT No Attribution, see the end of this file.
+*/
+#ifndef KDRT_H
+#define KDRT_H
+
+#define KDRT_VERSION_MAJOR 0
+#define KDRT_VERSION_MINOR 1
+#define KDRT_VERSION_PATCH 0
+#define KDRT_VERSION_STRING "0.1.0"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifndef KDRT_API
+#ifdef KDRT_STATIC
+#if defined(__GNUC__) || defined(__clang__)
+#define KDRT_API static __attribute__((unused))
+#else
+#define KDRT_API static
+#endif
+#else
+#define KDRT_API extern
+#endif
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The deepest tree a build makes; the traversal's stack holds this many entries. */
+#define KDRT_MAX_DEPTH 64
+/* Most triangles a tree accepts (a leaf's count and a child's index are 30-bit fields). */
+#define KDRT_MAX_TRIANGLES 0x3FFFFFFFu
+/* kdrt_hit.triangle on a miss, and kdrt_build_report.invalid_triangle when none was bad. */
+#define KDRT_INVALID_ID 0xFFFFFFFFu
+
+typedef enum kdrt_result {
+    KDRT_SUCCESS = 0,
+    KDRT_ERROR_NULL_ARGUMENT,      /* a required pointer was NULL */
+    KDRT_ERROR_INVALID_STRIDE,     /* position_stride is neither 0 nor at least 12 bytes */
+    KDRT_ERROR_INVALID_OPTION,     /* unknown builder or flag */
+    KDRT_ERROR_INDEX_OUT_OF_RANGE, /* a triangle refers to a vertex at or past vertex_count */
+    KDRT_ERROR_NON_FINITE_VERTEX,  /* a triangle has a NaN or infinite coordinate */
+    KDRT_ERROR_SIZE_OVERFLOW,      /* a count or byte size beyond what can be addressed */
+    KDRT_ERROR_OUT_OF_MEMORY       /* the allocator returned NULL */
+} kdrt_result;
+
+typedef struct kdrt_aabb {
+    float min[3];
+    float max[3];
+} kdrt_aabb;
+
+/* A borrowed view of the caller's triangles (see OWNERSHIP). */
+typedef struct kdrt_triangles {
+    const float *positions;    /* x, y, z of vertex 0; vertex i starts i * stride bytes later */
+    size_t position_stride;    /* bytes from one vertex to the next: 0 means packed (12), else >= 12 */
+    uint32_t vertex_count;     /* vertices readable at positions */
+    const uint32_t *indices;   /* 3 vertex indices per triangle, or NULL: triangle i is 3i, 3i+1, 3i+2 */
+    uint32_t triangle_count;
+} kdrt_triangles;
+
+typedef struct kdrt_ray {
+    float org[3];
+    float tmin;
+    float dir[3];
+    float tmax;
+} kdrt_ray;
+
+typedef struct kdrt_hit {
+    float t;
+    float u, v;        /* barycentrics of vertices 1 and 2 */
+    uint32_t triangle; /* index into the caller's triangles, KDRT_INVALID_ID on a miss */
+} kdrt_hit;
+
+/* Allocation hooks; user is passed back to both. All zero: KDRT_MALLOC / KDRT_FREE.
+   alloc must return memory aligned as malloc's, or NULL. */
+typedef struct kdrt_allocator {
+    void *(*alloc)(void *user, size_t size);
+    void (*free)(void *user, void *ptr);
+    void *user;
+} kdrt_allocator;
+
+typedef enum kdrt_builder {
+    KDRT_BUILDER_DEFAULT = 0, /* the best builder available: currently the median builder */
+    KDRT_BUILDER_MEDIAN = 1   /* the original's median-centroid kd-tree (see THE TREE) */
+} kdrt_builder;
+
+typedef enum kdrt_build_flags {
+    /* Leave out triangles with a NaN or infinite coordinate or an index out of range, and count
+       them in kdrt_build_report.skipped_triangles, instead of failing the build. */
+    KDRT_BUILD_SKIP_INVALID_TRIANGLES = 1u << 0
+} kdrt_build_flags;
+
+/* Start from kdrt_default_build_options(). A zero field means its default, except
+   max_leaf_size, where 0 keeps the original's meaning: no tree. */
+typedef struct kdrt_build_options {
+    kdrt_builder builder;
+    uint32_t max_leaf_size;   /* a node with at most this many triangles is a leaf; 0: no tree */
+    uint32_t max_depth;       /* 0: 8 + 1.3 log2(triangles) (pbrt); clamped to KDRT_MAX_DEPTH */
+    uint32_t flags;           /* kdrt_build_flags */
+    kdrt_allocator allocator; /* all zero: KDRT_MALLOC / KDRT_FREE */
+} kdrt_build_options;
+
+#define KDRT_DEFAULT_MAX_LEAF_SIZE 4
+
+/* What a build found in the input; filled on success and on failure. */
+typedef struct kdrt_build_report {
+    uint32_t invalid_triangle;  /* first triangle that failed the checks, or KDRT_INVALID_ID */
+    uint32_t skipped_triangles; /* triangles left out under KDRT_BUILD_SKIP_INVALID_TRIANGLES */
+} kdrt_build_report;
+
+typedef struct kdrt_tree_stats {
+    uint32_t triangles;     /* triangles in the tree (skipped ones excluded) */
+    uint32_t nodes;         /* inner nodes and leaves */
+    uint32_t leaves;
+    uint32_t max_depth;     /* depth of the deepest leaf; the root is depth 0 */
+    uint64_t triangle_refs; /* references stored in leaves: triangles counted once per leaf */
+    size_t bytes;           /* memory the tree owns */
+} kdrt_tree_stats;
+
+typedef struct kdrt_tree kdrt_tree;
+
+KDRT_API const char *kdrt_result_string(kdrt_result result);
+
+KDRT_API kdrt_aabb kdrt_aabb_empty(void);
+KDRT_API void kdrt_aabb_grow(kdrt_aabb *box, const float point[3]);
+KDRT_API kdrt_aabb kdrt_aabb_union(kdrt_aabb a, kdrt_aabb b);
+/* Box of every vertex of every triangle; fails as kdrt_tree_build() does on bad input
+   (report may be NULL). An empty mesh gives kdrt_aabb_empty(). */
+KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aabb *out_box,
+                                            kdrt_build_report *report);
+/* 1 when the ray's range [max(tmin, 0), tmax] meets the closed box; the overlap goes to
+   *t_enter and *t_exit (either may be NULL). Zero and negative-zero direction components are
+   exact: a ray parallel to a slab is inside it when its origin is, boundary included. NaN in the
+   ray or the box gives 0. */
+KDRT_API int kdrt_aabb_intersect_ray(const kdrt_aabb *box, const kdrt_ray *ray, float *t_enter,
+                                     float *t_exit);
+
+KDRT_API kdrt_build_options kdrt_default_build_options(void);
+/* Builds a tree over mesh. options NULL means defaults; report may be NULL. On failure *out_tree
+   is NULL and nothing stays allocated. */
+KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
+                                     kdrt_tree **out_tree, kdrt_build_report *report);
+KDRT_API void kdrt_tree_free(kdrt_tree *tree); /* NULL is fine */
+KDRT_API void kdrt_tree_get_stats(const kdrt_tree *tree, kdrt_tree_stats *out_stats);
+KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree);
+
+/* Nearest hit in the ray's range: returns 1 and fills *hit, or returns 0 with
+   hit->triangle = KDRT_INVALID_ID (the other fields are then unspecified). NULL arguments give 0. */
+KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit);
+/* 1 when any triangle is hit in the ray's range (shadow rays). */
+KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* KDRT_H */
+
+/* ============================================================================================ */
+#if defined(KDRT_IMPLEMENTATION) && !defined(KDRT__IMPLEMENTED)
+#define KDRT__IMPLEMENTED
+
+#include <math.h>   /* INFINITY only: no libm functions are called */
+#include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
+#include <string.h>
+
+#ifndef KDRT_ASSERT
+#include <assert.h>
+#define KDRT_ASSERT(x) assert(x)
+#endif
+
+#if defined(KDRT_MALLOC) != defined(KDRT_FREE)
+#error "kdrt: define both KDRT_MALLOC and KDRT_FREE, or neither"
+#endif
+#ifndef KDRT_MALLOC
+#define KDRT_MALLOC(size, user) ((void)(user), malloc(size))
+#define KDRT_FREE(ptr, user) ((void)(user), free(ptr))
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* 8-byte node (pbrt-v3's layout). bits: low 2 = axis 0..2, or 3 for a leaf; high 30 = index of
+   the above child (the below child follows its parent), or a leaf's triangle count. */
+typedef struct kdrt__node {
+    union {
+        float split;        /* inner node: plane position on its axis */
+        uint32_t first_ref; /* leaf: offset of its first entry in kdrt_tree.refs */
+    } u;
+    uint32_t bits;
+} kdrt__node;
+
+typedef char kdrt__node_is_8_bytes[sizeof(kdrt__node) == 8 ? 1 : -1];
+
+#define KDRT__LEAF 3u
+
+struct kdrt_tree {
+    kdrt_triangles mesh; /* borrowed; position_stride resolved (never 0) */
+    kdrt_allocator allocator;
+    kdrt_aabb bounds;
+    kdrt__node *nodes;
+    uint32_t *refs; /* triangle indices, leaf by leaf */
+    kdrt_tree_stats stats;
+};
+
+/* ---- small helpers ---- */
+
+/* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
+static int kdrt__finite(float x) { return x - x == 0.0f; }
+
+static void *kdrt__alloc(const kdrt_allocator *a, size_t size)
+{
+    if (size == 0) size = 1;
+    return a->alloc ? a->alloc(a->user, size) : KDRT_MALLOC(size, a->user);
+}
+
+static void kdrt__free(const kdrt_allocator *a, void *ptr)
+{
+    if (!ptr) return;
+    if (a->free) a->free(a->user, ptr);
+    else KDRT_FREE(ptr, a->user);
+}
+
+/* *out = a * b, failing instead of wrapping. */
+static int kdrt__mul_size(size_t a, size_t b, size_t *out)
+{
+    if (b != 0 && a > (size_t)-1 / b) return 0;
+    *out = a * b;
+    return 1;
+}
+
+static size_t kdrt__stride(const kdrt_triangles *m)
+{
+    return m->position_stride ? m->position_stride : 3 * sizeof(float);
+}
+
+/* Vertex indices of triangle tri; soups use 3 tri + k (the caller checked it cannot wrap). */
+static void kdrt__triangle_indices(const kdrt_triangles *m, uint32_t tri, uint32_t idx[3])
+{
+    int k;
+    for (k = 0; k < 3; ++k)
+        idx[k] = m->indices ? m->indices[(size_t)tri * 3 + k] : tri * 3u + (uint32_t)k;
+}
+
+/* memcpy, because a caller's byte stride may leave the floats unaligned. */
+static void kdrt__load_vertex(const kdrt_triangles *m, uint32_t vertex, float out[3])
+{
+    const unsigned char *base = (const unsigned char *)m->positions;
+    memcpy(out, base + (size_t)vertex * m->position_stride, 3 * sizeof(float));
+}
+
+static void kdrt__load_triangle(const kdrt_triangles *m, uint32_t tri, float p[3][3])
+{
+    uint32_t idx[3];
+    kdrt__triangle_indices(m, tri, idx);
+    kdrt__load_vertex(m, idx[0], p[0]);
+    kdrt__load_vertex(m, idx[1], p[1]);
+    kdrt__load_vertex(m, idx[2], p[2]);
+}
+
+/* Checks the view itself; *m gets a resolved copy (stride never 0). */
+static kdrt_result kdrt__check_view(const kdrt_triangles *mesh, kdrt_triangles *m)
+{
+    size_t bytes;
+    if (!mesh) return KDRT_ERROR_NULL_ARGUMENT;
+    *m = *mesh;
+    if (m->position_stride != 0 && m->position_stride < 3 * sizeof(float))
+        return KDRT_ERROR_INVALID_STRIDE;
+    m->position_stride = kdrt__stride(mesh);
+    if (m->triangle_count == 0) return KDRT_SUCCESS;
+    if (m->triangle_count > KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
+    if (!m->positions) return KDRT_ERROR_NULL_ARGUMENT;
+    /* Every vertex byte must be addressable, and so must every index. */
+    if (!kdrt__mul_size((size_t)m->vertex_count, m->position_stride, &bytes))
+        return KDRT_ERROR_SIZE_OVERFLOW;
+    if (!kdrt__mul_size((size_t)m->triangle_count, 3 * sizeof(uint32_t), &bytes))
+        return KDRT_ERROR_SIZE_OVERFLOW;
+    return KDRT_SUCCESS;
+}
+
+/* KDRT_SUCCESS, or why triangle tri cannot be used; its corners go to p when it can. */
+static kdrt_result kdrt__check_triangle(const kdrt_triangles *m, uint32_t tri, float p[3][3])
+{
+    uint32_t idx[3];
+    int k, a;
+    kdrt__triangle_indices(m, tri, idx);
+    if (!m->indices && (uint64_t)tri * 3u + 2u >= m->vertex_count) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
+    for (k = 0; k < 3; ++k)
+        if (idx[k] >= m->vertex_count) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
+    for (k = 0; k < 3; ++k) {
+        kdrt__load_vertex(m, idx[k], p[k]);
+        for (a = 0; a < 3; ++a)
+            if (!kdrt__finite(p[k][a])) return KDRT_ERROR_NON_FINITE_VERTEX;
+    }
+    return KDRT_SUCCESS;
+}
+
+/* ---- results, boxes ---- */
+
+KDRT_API const char *kdrt_result_string(kdrt_result result)
+{
+    switch (result) {
+    case KDRT_SUCCESS: return "success";
+    case KDRT_ERROR_NULL_ARGUMENT: return "a required pointer is NULL";
+    case KDRT_ERROR_INVALID_STRIDE: return "position stride is neither 0 (packed) nor at least 12 bytes";
+    case KDRT_ERROR_INVALID_OPTION: return "unknown builder or build flag";
+    case KDRT_ERROR_INDEX_OUT_OF_RANGE: return "a triangle refers to a vertex at or past vertex_count";
+    case KDRT_ERROR_NON_FINITE_VERTEX: return "a triangle has a NaN or infinite coordinate";
+    case KDRT_ERROR_SIZE_OVERFLOW: return "a count or byte size is too large to address";
+    case KDRT_ERROR_OUT_OF_MEMORY: return "out of memory";
+    }
+    return "unknown kdrt_result";
+}
+
+KDRT_API kdrt_aabb kdrt_aabb_empty(void)
+{
+    /* min > max on every axis: growing it by any point gives that point's box. */
+    kdrt_aabb box;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        box.min[a] = INFINITY;
+        box.max[a] = -INFINITY;
+    }
+    return box;
+}
+
+KDRT_API void kdrt_aabb_grow(kdrt_aabb *box, const float point[3])
+{
+    int a;
+    for (a = 0; a < 3; ++a) {
+        if (point[a] < box->min[a]) box->min[a] = point[a];
+        if (point[a] > box->max[a]) box->max[a] = point[a];
+    }
+}
+
+KDRT_API kdrt_aabb kdrt_aabb_union(kdrt_aabb a, kdrt_aabb b)
+{
+    kdrt_aabb_grow(&a, b.min);
+    kdrt_aabb_grow(&a, b.max);
+    return a;
+}
+
+KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aabb *out_box,
+                                            kdrt_build_report *report)
+{
+    kdrt_triangles m;
+    kdrt_result r;
+    uint32_t tri;
+    float p[3][3];
+    if (report) report->invalid_triangle = KDRT_INVALID_ID, report->skipped_triangles = 0;
+    if (!out_box) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_box = kdrt_aabb_empty();
+    r = kdrt__check_view(mesh, &m);
+    if (r != KDRT_SUCCESS) return r;
+    for (tri = 0; tri < m.triangle_count; ++tri) {
+        r = kdrt__check_triangle(&m, tri, p);
+        if (r != KDRT_SUCCESS) {
+            if (report) report->invalid_triangle = tri;
+            *out_box = kdrt_aabb_empty();
+            return r;
+        }
+        kdrt_aabb_grow(out_box, p[0]);
+        kdrt_aabb_grow(out_box, p[1]);
+        kdrt_aabb_grow(out_box, p[2]);
+    }
+    return KDRT_SUCCESS;
+}
+
+/* pbrt's gamma(3) doubled: (split - o) * (1 / d) is three roundings away from the true distance,
+   so the true value lies within t * (1 -+ KDRT__T_SLACK). */
+#define KDRT__EPS 5.96046448e-8f /* 2^-24, half an ulp of 1 */
+#define KDRT__T_SLACK (2.0f * (3.0f * KDRT__EPS) / (1.0f - 3.0f * KDRT__EPS))
+
+typedef struct kdrt__ray_setup {
+    float org[3], dir[3], inv_dir[3];
+    float tmin, tmax;
+} kdrt__ray_setup;
+
+/* 0 for rays that can hit nothing: NaN or infinite parts, zero direction, empty range. */
+static int kdrt__setup_ray(const kdrt_ray *ray, kdrt__ray_setup *s)
+{
+    int a, nonzero = 0;
+    for (a = 0; a < 3; ++a) {
+        if (!kdrt__finite(ray->org[a]) || !kdrt__finite(ray->dir[a])) return 0;
+        s->org[a] = ray->org[a];
+        s->dir[a] = ray->dir[a];
+        s->inv_dir[a] = 1.0f / ray->dir[a]; /* +-0 gives +-infinity, which the slab tests expect */
+        nonzero |= ray->dir[a] != 0.0f;
+    }
+    s->tmin = ray->tmin > 0.0f ? ray->tmin : 0.0f;
+    s->tmax = ray->tmax;
+    return nonzero && s->tmin <= s->tmax; /* also false when tmax is NaN */
+}
+
+/* Slab test. An axis the ray is parallel to (its inverse direction is infinite) is decided by
+   the origin alone, which keeps 0 * infinity NaNs out and makes +-0 directions exact. */
+static int kdrt__clip_to_box(const kdrt_aabb *box, const kdrt__ray_setup *s, float *t0, float *t1)
+{
+    float enter = s->tmin, exit = s->tmax;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        float ta, tb, tnear, tfar;
+        if (!kdrt__finite(s->inv_dir[a])) {
+            if (s->org[a] < box->min[a] || s->org[a] > box->max[a]) return 0;
+            continue;
+        }
+        ta = (box->min[a] - s->org[a]) * s->inv_dir[a];
+        tb = (box->max[a] - s->org[a]) * s->inv_dir[a];
+        tnear = ta < tb ? ta : tb;
+        tfar = (ta < tb ? tb : ta) * (1.0f + KDRT__T_SLACK); /* conservative exit (pbrt-v3) */
+        if (tnear > enter) enter = tnear;
+        if (tfar < exit) exit = tfar;
+    }
+    *t0 = enter;
+    *t1 = exit;
+    return enter <= exit;
+}
+
+KDRT_API int kdrt_aabb_intersect_ray(const kdrt_aabb *box, const kdrt_ray *ray, float *t_enter,
+                                     float *t_exit)
+{
+    kdrt__ray_setup s;
+    float t0, t1;
+    int a;
+    if (!box || !ray || !kdrt__setup_ray(ray, &s)) return 0;
+    for (a = 0; a < 3; ++a)
+        if (!(box->min[a] <= box->max[a])) return 0; /* empty or NaN box */
+    if (!kdrt__clip_to_box(box, &s, &t0, &t1)) return 0;
+    if (t_enter) *t_enter = t0;
+    if (t_exit) *t_exit = t1;
+    return 1;
+}
+
+/* ---- build ---- */
+
+KDRT_API kdrt_build_options kdrt_default_build_options(void)
+{
+    kdrt_build_options o;
+    memset(&o, 0, sizeof o);
+    o.builder = KDRT_BUILDER_MEDIAN;
+    o.max_leaf_size = KDRT_DEFAULT_MAX_LEAF_SIZE;
+    return o;
+}
+
+#define KDRT__SIDE_BELOW 1u
+#define KDRT__SIDE_ABOVE 2u
+
+typedef struct kdrt__builder {
+    const kdrt_allocator *allocator;
+    const float *lo, *hi, *centroid; /* per triangle (by caller's index), 3 floats each */
+    unsigned char *side;             /* per triangle: KDRT__SIDE_* of the split being made */
+    kdrt__node *nodes;
+    uint32_t node_count, node_capacity;
+    uint32_t *refs;
+    uint32_t ref_count, ref_capacity;
+    uint32_t max_leaf_size, max_depth;
+    uint32_t leaves, depth_reached;
+} kdrt__builder;
+
+/* Grows *array (elements of elem_size) to hold at least need; capacity doubles. */
+static kdrt_result kdrt__reserve(const kdrt_allocator *a, void **array, uint32_t *capacity,
+                                 uint32_t need, size_t elem_size)
+{
+    uint32_t cap = *capacity;
+    size_t bytes;
+    void *grown;
+    if (need <= cap) return KDRT_SUCCESS;
+    cap = cap < 64u ? 64u : cap;
+    while (cap < need) cap = cap > 0x7FFFFFFFu ? 0xFFFFFFFFu : cap * 2u;
+    if (!kdrt__mul_size(cap, elem_size, &bytes)) return KDRT_ERROR_SIZE_OVERFLOW;
+    grown = kdrt__alloc(a, bytes);
+    if (!grown) return KDRT_ERROR_OUT_OF_MEMORY;
+    if (*array) memcpy(grown, *array, (size_t)*capacity * elem_size);
+    kdrt__free(a, *array);
+    *array = grown;
+    *capacity = cap;
+    return KDRT_SUCCESS;
+}
+
+/* Trims *array to count elements once the build is done; keeps it as it is if that fails. */
+static void kdrt__shrink(const kdrt_allocator *a, void **array, uint32_t *capacity, uint32_t count,
+                         size_t elem_size)
+{
+    void *exact;
+    if (count == *capacity || count == 0) return;
+    exact = kdrt__alloc(a, (size_t)count * elem_size);
+    if (!exact) return;
+    memcpy(exact, *array, (size_t)count * elem_size);
+    kdrt__free(a, *array);
+    *array = exact;
+    *capacity = count;
+}
+
+static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32_t *tris, uint32_t n,
+                                   uint32_t depth)
+{
+    kdrt_result r;
+    if (n > KDRT_MAX_TRIANGLES || n > 0xFFFFFFFFu - b->ref_count) return KDRT_ERROR_SIZE_OVERFLOW;
+    r = kdrt__reserve(b->allocator, (void **)&b->refs, &b->ref_capacity, b->ref_count + n,
+                      sizeof(uint32_t));
+    if (r != KDRT_SUCCESS) return r;
+    if (n) memcpy(b->refs + b->ref_count, tris, (size_t)n * sizeof(uint32_t));
+    b->nodes[node].u.first_ref = b->ref_count;
+    b->nodes[node].bits = (n << 2) | KDRT__LEAF;
+    b->ref_count += n;
+    b->leaves += 1;
+    if (depth > b->depth_reached) b->depth_reached = depth;
+    return KDRT_SUCCESS;
+}
+
+/* Marks each triangle's side of the plane; returns the counts below and above. */
+static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, int axis, float split,
+                           uint32_t *below, uint32_t *above)
+{
+    uint32_t i, nb = 0, na = 0;
+    for (i = 0; i < n; ++i) {
+        uint32_t t = tris[i];
+        float lo = b->lo[3 * t + axis], hi = b->hi[3 * t + axis];
+        unsigned char side = 0;
+        if (lo < split || hi <= split) side |= KDRT__SIDE_BELOW; /* planar-in-plane goes below */
+        if (hi > split) side |= KDRT__SIDE_ABOVE;
+        b->side[t] = side;
+        nb += (side & KDRT__SIDE_BELOW) != 0;
+        na += (side & KDRT__SIDE_ABOVE) != 0;
+    }
+    *below = nb;
+    *above = na;
+}
+
+/* lists holds the node's n triangles three times, sorted by centroid x, y and z. */
+static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uint32_t n, uint32_t depth)
+{
+    uint32_t node, nb = 0, na = 0, i, k, attempt, *children;
+    int axis = 0;
+    float split = 0.0f;
+    size_t count;
+    kdrt_result r;
+
+    if (b->node_count >= KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
+    r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count + 1,
+                      sizeof(kdrt__node));
+    if (r != KDRT_SUCCESS) return r;
+    node = b->node_count++;
+
+    if (n <= b->max_leaf_size || depth >= b->max_depth) return kdrt__emit_leaf(b, node, lists, n, depth);
+
+    for (attempt = 0; attempt < 3; ++attempt) {
+        axis = (int)((depth + attempt) % 3u);
+        split = b->centroid[3 * lists[(size_t)axis * n + n / 2] + axis];
+        kdrt__classify(b, lists + (size_t)axis * n, n, axis, split, &nb, &na);
+        if (nb < n && na < n) break;
+    }
+    if (attempt == 3) return kdrt__emit_leaf(b, node, lists, n, depth); /* separates nothing */
+
+    /* Filtering keeps each axis's order, so the children's lists stay sorted. */
+    count = 3u * ((size_t)nb + na);
+    children = (uint32_t *)kdrt__alloc(b->allocator, count * sizeof(uint32_t));
+    if (!children) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (k = 0; k < 3; ++k) {
+        uint32_t *below = children + (size_t)k * nb, *above = children + 3u * (size_t)nb + (size_t)k * na;
+        const uint32_t *list = lists + (size_t)k * n;
+        for (i = 0; i < n; ++i) {
+            unsigned char side = b->side[list[i]];
+            if (side & KDRT__SIDE_BELOW) *below++ = list[i];
+            if (side & KDRT__SIDE_ABOVE) *above++ = list[i];
+        }
+    }
+    r = kdrt__build_node(b, children, nb, depth + 1);
+    if (r == KDRT_SUCCESS) {
+        /* The below child follows at node + 1; the above child starts here. */
+        b->nodes[node].u.split = split;
+        b->nodes[node].bits = (b->node_count << 2) | (uint32_t)axis;
+        r = kdrt__build_node(b, children + 3u * (size_t)nb, na, depth + 1);
+    }
+    kdrt__free(b->allocator, children);
+    return r;
+}
+
+typedef struct kdrt__key {
+    float key;
+    uint32_t tri;
+} kdrt__key;
+
+static int kdrt__key_less(const void *pa, const void *pb)
+{
+    const kdrt__key *a = (const kdrt__key *)pa, *b = (const kdrt__key *)pb;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    return a->tri < b->tri ? -1 : (a->tri > b->tri); /* a total order: same tree on every libc */
+}
+
+static uint32_t kdrt__default_depth(uint32_t n)
+{
+    uint32_t log2n = 0, depth;
+    while ((n >> log2n) > 1u) ++log2n;
+    depth = 8u + (13u * log2n + 5u) / 10u; /* 8 + 1.3 log2 n, pbrt-v3 */
+    return depth < KDRT_MAX_DEPTH ? depth : KDRT_MAX_DEPTH;
+}
+
+KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
+                                     kdrt_tree **out_tree, kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt_triangles m;
+    kdrt_tree *tree = NULL;
+    kdrt__builder b;
+    float *scratch = NULL, p[3][3];
+    uint32_t *valid = NULL, *lists = NULL, n = 0, tri, skipped = 0, i;
+    kdrt__key *keys = NULL;
+    kdrt_result r;
+    size_t bytes;
+    int a, k;
+
+    if (report) report->invalid_triangle = KDRT_INVALID_ID, report->skipped_triangles = 0;
+    if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_tree = NULL;
+    r = kdrt__check_view(mesh, &m);
+    if (r != KDRT_SUCCESS) return r;
+    if (opt.builder != KDRT_BUILDER_DEFAULT && opt.builder != KDRT_BUILDER_MEDIAN) return KDRT_ERROR_INVALID_OPTION;
+    if (opt.flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
+    if ((opt.allocator.alloc == NULL) != (opt.allocator.free == NULL)) return KDRT_ERROR_NULL_ARGUMENT;
+
+    memset(&b, 0, sizeof b);
+    b.allocator = &opt.allocator;
+    b.max_leaf_size = opt.max_leaf_size;
+    b.max_depth = opt.max_depth ? opt.max_depth : kdrt__default_depth(m.triangle_count);
+    if (b.max_depth > KDRT_MAX_DEPTH) b.max_depth = KDRT_MAX_DEPTH;
+
+    tree = (kdrt_tree *)kdrt__alloc(&opt.allocator, sizeof *tree);
+    if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
+    memset(tree, 0, sizeof *tree);
+    tree->mesh = m;
+    tree->allocator = opt.allocator;
+    tree->bounds = kdrt_aabb_empty();
+
+    /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles. */
+    if (!kdrt__mul_size((size_t)m.triangle_count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes)) {
+        r = KDRT_ERROR_SIZE_OVERFLOW;
+        goto fail;
+    }
+    scratch = (float *)kdrt__alloc(&opt.allocator, bytes);
+    if (!scratch) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
+    valid = (uint32_t *)(scratch + 9 * (size_t)m.triangle_count);
+    b.lo = scratch;
+    b.hi = scratch + 3 * (size_t)m.triangle_count;
+    b.centroid = scratch + 6 * (size_t)m.triangle_count;
+    b.side = (unsigned char *)(valid + m.triangle_count);
+
+    for (tri = 0; tri < m.triangle_count; ++tri) {
+        float *lo = scratch + 3 * (size_t)tri, *hi = lo + 3 * (size_t)m.triangle_count, *c = hi + 3 * (size_t)m.triangle_count;
+        r = kdrt__check_triangle(&m, tri, p);
+        if (r != KDRT_SUCCESS) {
+            if (report && report->invalid_triangle == KDRT_INVALID_ID) report->invalid_triangle = tri;
+            if (!(opt.flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) goto fail;
+            ++skipped;
+            continue;
+        }
+        for (a = 0; a < 3; ++a) {
+            lo[a] = hi[a] = p[0][a];
+            for (k = 1; k < 3; ++k) {
+                if (p[k][a] < lo[a]) lo[a] = p[k][a];
+                if (p[k][a] > hi[a]) hi[a] = p[k][a];
+            }
+            c[a] = (p[0][a] + p[1][a] + p[2][a]) * (1.0f / 3.0f);
+        }
+        kdrt_aabb_grow(&tree->bounds, lo);
+        kdrt_aabb_grow(&tree->bounds, hi);
+        valid[n++] = tri;
+    }
+    r = KDRT_SUCCESS;
+    if (report) report->skipped_triangles = skipped;
+
+    if (opt.max_leaf_size == 0 || n == 0) {
+        /* No tree: one leaf holding every usable triangle, tested in order. */
+        r = kdrt__reserve(b.allocator, (void **)&b.nodes, &b.node_capacity, 1, sizeof(kdrt__node));
+        if (r == KDRT_SUCCESS) b.node_count = 1, r = kdrt__emit_leaf(&b, 0, valid, n, 0);
+    } else {
+        /* Sort once per axis by centroid; every node then filters its parent's lists. */
+        lists = (uint32_t *)kdrt__alloc(&opt.allocator, 3 * (size_t)n * sizeof(uint32_t));
+        keys = (kdrt__key *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__key));
+        if (!lists || !keys) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
+        for (a = 0; a < 3; ++a) {
+            for (i = 0; i < n; ++i) keys[i].key = b.centroid[3 * (size_t)valid[i] + a], keys[i].tri = valid[i];
+            qsort(keys, n, sizeof *keys, kdrt__key_less);
+            for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
+        }
+        kdrt__free(&opt.allocator, keys);
+        keys = NULL;
+        r = kdrt__build_node(&b, lists, n, 0);
+    }
+    if (r != KDRT_SUCCESS) goto fail;
+
+    kdrt__shrink(b.allocator, (void **)&b.nodes, &b.node_capacity, b.node_count, sizeof(kdrt__node));
+    kdrt__shrink(b.allocator, (void **)&b.refs, &b.ref_capacity, b.ref_count, sizeof(uint32_t));
+    tree->nodes = b.nodes;
+    tree->refs = b.refs;
+    tree->stats.triangles = n;
+    tree->stats.nodes = b.node_count;
+    tree->stats.leaves = b.leaves;
+    tree->stats.max_depth = b.depth_reached;
+    tree->stats.triangle_refs = b.ref_count;
+    tree->stats.bytes = sizeof *tree + (size_t)b.node_capacity * sizeof(kdrt__node) +
+                        (size_t)b.ref_capacity * sizeof(uint32_t);
+    kdrt__free(&opt.allocator, lists);
+    kdrt__free(&opt.allocator, scratch);
+    *out_tree = tree;
+    return KDRT_SUCCESS;
+
+fail:
+    kdrt__free(&opt.allocator, keys);
+    kdrt__free(&opt.allocator, lists);
+    kdrt__free(&opt.allocator, scratch);
+    kdrt__free(&opt.allocator, b.nodes);
+    kdrt__free(&opt.allocator, b.refs);
+    kdrt__free(&opt.allocator, tree);
+    return r;
+}
+
+KDRT_API void kdrt_tree_free(kdrt_tree *tree)
+{
+    kdrt_allocator a;
+    if (!tree) return;
+    a = tree->allocator;
+    kdrt__free(&a, tree->nodes);
+    kdrt__free(&a, tree->refs);
+    kdrt__free(&a, tree);
+}
+
+KDRT_API void kdrt_tree_get_stats(const kdrt_tree *tree, kdrt_tree_stats *out_stats)
+{
+    if (!out_stats) return;
+    if (!tree) { memset(out_stats, 0, sizeof *out_stats); return; }
+    *out_stats = tree->stats;
+}
+
+KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
+{
+    return tree ? tree->bounds : kdrt_aabb_empty();
+}
+
+/* ---- queries ---- */
+
+/* Moeller-Trumbore, no epsilon. Accepts t in [tmin, *best_t], nearer first, equal t going to
+   the lower triangle index so that the answer does not depend on the order of the tests. */
+static int kdrt__intersect_triangle(const kdrt_triangles *m, uint32_t tri, const kdrt__ray_setup *s,
+                                    kdrt_hit *best)
+{
+    float p[3][3], e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
+    int a;
+    kdrt__load_triangle(m, tri, p);
+    for (a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
+    pv[0] = s->dir[1] * e2[2] - s->dir[2] * e2[1];
+    pv[1] = s->dir[2] * e2[0] - s->dir[0] * e2[2];
+    pv[2] = s->dir[0] * e2[1] - s->dir[1] * e2[0];
+    det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    if (det == 0.0f) return 0; /* parallel or degenerate */
+    inv_det = 1.0f / det;
+    u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv_det;
+    if (!(u >= 0.0f && u <= 1.0f)) return 0;
+    qv[0] = tv[1] * e1[2] - tv[2] * e1[1];
+    qv[1] = tv[2] * e1[0] - tv[0] * e1[2];
+    qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    v = (s->dir[0] * qv[0] + s->dir[1] * qv[1] + s->dir[2] * qv[2]) * inv_det;
+    if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
+    t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
+    if (!(t >= s->tmin && t <= best->t)) return 0;
+    if (t == best->t && tri > best->triangle) return 0;
+    best->t = t, best->u = u, best->v = v, best->triangle = tri;
+    return 1;
+}
+
+typedef struct kdrt__todo {
+    uint32_t node;
+    float t0, t1;
+} kdrt__todo;
+
+/* The one traversal, front to back, for the nearest hit or (any_hit) the first found. */
+static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *best, int any_hit)
+{
+    kdrt__todo stack[KDRT_MAX_DEPTH];
+    uint32_t sp = 0, node = 0;
+    kdrt__ray_setup s;
+    float t0, t1;
+
+    best->t = 0.0f, best->u = best->v = 0.0f, best->triangle = KDRT_INVALID_ID;
+    if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
+    best->t = s.tmax;
+
+    for (;;) {
+        const kdrt__node *n = &tree->nodes[node];
+        uint32_t axis = n->bits & 3u;
+        if (axis != KDRT__LEAF) {
+            float split = n->u.split, o = s.org[axis];
+            float t_split = (split - o) * s.inv_dir[axis];
+            int below_first = o < split || (o == split && s.dir[axis] <= 0.0f);
+            uint32_t near_child = below_first ? node + 1 : n->bits >> 2;
+            uint32_t far_child = below_first ? n->bits >> 2 : node + 1;
+            if (t_split != t_split) {
+                /* 0 * infinity: the ray lies in the plane and may hit either side's triangles. */
+                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
+                stack[sp].node = far_child, stack[sp].t0 = t0, stack[sp].t1 = t1, ++sp;
+                node = near_child;
+            } else if (t_split <= 0.0f || t_split * (1.0f - KDRT__T_SLACK) > t1) {
+                node = near_child; /* the plane is behind the origin or beyond the range */
+            } else if (t_split * (1.0f + KDRT__T_SLACK) < t0) {
+                node = far_child; /* the range starts past the plane */
+            } else {
+                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
+                stack[sp].node = far_child, stack[sp].t0 = t_split * (1.0f - KDRT__T_SLACK);
+                stack[sp].t1 = t1, ++sp;
+                node = near_child;
+                t1 = t_split * (1.0f + KDRT__T_SLACK);
+            }
+            continue;
+        }
+        {
+            const uint32_t *refs = tree->refs + n->u.first_ref;
+            uint32_t i, count = n->bits >> 2;
+            for (i = 0; i < count; ++i)
+                if (kdrt__intersect_triangle(&tree->mesh, refs[i], &s, best) && any_hit) return 1;
+        }
+        /* Next node that starts no later than the best hit: any triangle in a node starting
+           beyond it is farther away. */
+        do {
+            if (sp == 0) return best->triangle != KDRT_INVALID_ID;
+            --sp;
+            node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
+        } while (t0 > best->t);
+    }
+}
+
+KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
+{
+    if (!hit) return 0;
+    if (!tree || !ray) {
+        hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
+        return 0;
+    }
+    return kdrt__traverse(tree, ray, hit, 0);
+}
+
+KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
+{
+    kdrt_hit hit;
+    return tree && ray && kdrt__traverse(tree, ray, &hit, 1);
+}
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* KDRT_IMPLEMENTATION */
+
+/*
+   MIT No Attribution
+
+   Copyright 2026 the kdrt authors
+
+   Permission is hereby granted, free of charge, to any person obtaining a copy of this software
+   and associated documentation files (the "Software"), to deal in the Software without
+   restriction, including without limitation the rights to use, copy, modify, merge, publish,
+   distribute, sublicense, and/or sell copies of the Software, and to permit persons to whom the
+   Software is furnished to do so.
+
+   THE SOFTWARE IS PROVIDED "AS IS", WITHOUT WARRANTY OF ANY KIND, EXPRESS OR IMPLIED, INCLUDING
+   BUT NOT LIMITED TO THE WARRANTIES OF MERCHANTABILITY, FITNESS FOR A PARTICULAR PURPOSE AND
+   NONINFRINGEMENT. IN NO EVENT SHALL THE AUTHORS OR COPYRIGHT HOLDERS BE LIABLE FOR ANY CLAIM,
+   DAMAGES OR OTHER LIABILITY, WHETHER IN AN ACTION OF CONTRACT, TORT OR OTHERWISE, ARISING FROM,
+   OUT OF OR IN CONNECTION WITH THE SOFTWARE OR THE USE OR OTHER DEALINGS IN THE SOFTWARE.
+*/
