@@ -1,0 +1,3 @@
+#define KDRT_IMPLEMENTATION
+#include "kdrt.h"
+int main(void) { return 0; }
