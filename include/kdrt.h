@@ -54,13 +54,16 @@
 
    QUERIES AND NUMERICAL GUARANTEES
      A ray is org + t * dir for t in [max(tmin, 0), tmax]; dir need not be normalised. A ray with a
-     NaN or infinite origin or direction, an all-zero direction, or tmin > tmax misses everything.
+     NaN or infinite origin or direction, an all-zero direction, a NaN tmin or tmax, or
+     tmin > tmax misses everything.
      kdrt_intersect() returns the nearest hit in that range. Equal distances are broken towards the
      lower triangle index, so the result does not depend on the tree's shape: a tree of any leaf
      size returns exactly what max_leaf_size = 0 (test every triangle) returns for the same ray.
      Triangles are intersected with the Moeller-Trumbore test in single precision, with no epsilon:
-     a ray meeting a triangle exactly on its edge counts as a hit; degenerate (zero-area) triangles
-     are never hit. Hits are accepted wherever they are found and the traversal stops only once
+     a ray meeting a triangle exactly on its edge counts as a hit. Zero-area triangles (coincident
+     or collinear corners: the edges' cross product, evaluated in double precision, is exactly
+     zero) are left out of the tree at build time and never hit; they are valid input, counted in
+     kdrt_build_report.degenerate_triangles. Hits are accepted wherever they are found and the traversal stops only once
      every node nearer than the best hit has been visited, so a hit lying beyond the leaf it was
      found in is never returned ahead of a nearer one. Split-plane distances are widened by a
      bound on their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit
@@ -189,10 +192,11 @@ typedef struct kdrt_build_options {
 typedef struct kdrt_build_report {
     uint32_t invalid_triangle;  /* first triangle that failed the checks, or KDRT_INVALID_ID */
     uint32_t skipped_triangles; /* triangles left out under KDRT_BUILD_SKIP_INVALID_TRIANGLES */
+    uint32_t degenerate_triangles; /* zero-area triangles, left out because no ray can hit them */
 } kdrt_build_report;
 
 typedef struct kdrt_tree_stats {
-    uint32_t triangles;     /* triangles in the tree (skipped ones excluded) */
+    uint32_t triangles;     /* triangles in the tree (skipped and zero-area ones excluded) */
     uint32_t nodes;         /* inner nodes and leaves */
     uint32_t leaves;
     uint32_t max_depth;     /* depth of the deepest leaf; the root is depth 0 */
@@ -378,6 +382,17 @@ static kdrt_result kdrt__check_triangle(const kdrt_triangles *m, uint32_t tri, f
     return KDRT_SUCCESS;
 }
 
+/* Coincident or collinear corners. In double the edges and their products lose far less than in
+   float, so exact degeneracies (repeated corners, collinear grid points) come out exactly zero. */
+static int kdrt__zero_area(float p[3][3])
+{
+    double e1[3], e2[3];
+    int a;
+    for (a = 0; a < 3; ++a) e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
+    return e1[1] * e2[2] - e1[2] * e2[1] == 0.0 && e1[2] * e2[0] - e1[0] * e2[2] == 0.0 &&
+           e1[0] * e2[1] - e1[1] * e2[0] == 0.0;
+}
+
 /* ---- results, boxes ---- */
 
 KDRT_API const char *kdrt_result_string(kdrt_result result)
@@ -418,8 +433,12 @@ KDRT_API void kdrt_aabb_grow(kdrt_aabb *box, const float point[3])
 
 KDRT_API kdrt_aabb kdrt_aabb_union(kdrt_aabb a, kdrt_aabb b)
 {
-    kdrt_aabb_grow(&a, b.min);
-    kdrt_aabb_grow(&a, b.max);
+    /* Per axis, not by growing a with b's corners: b's corners are infinite when b is empty. */
+    int k;
+    for (k = 0; k < 3; ++k) {
+        if (b.min[k] < a.min[k]) a.min[k] = b.min[k];
+        if (b.max[k] > a.max[k]) a.max[k] = b.max[k];
+    }
     return a;
 }
 
@@ -430,7 +449,10 @@ KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aab
     kdrt_result r;
     uint32_t tri;
     float p[3][3];
-    if (report) report->invalid_triangle = KDRT_INVALID_ID, report->skipped_triangles = 0;
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->invalid_triangle = KDRT_INVALID_ID;
+    }
     if (!out_box) return KDRT_ERROR_NULL_ARGUMENT;
     *out_box = kdrt_aabb_empty();
     r = kdrt__check_view(mesh, &m);
@@ -470,6 +492,7 @@ static int kdrt__setup_ray(const kdrt_ray *ray, kdrt__ray_setup *s)
         s->inv_dir[a] = 1.0f / ray->dir[a]; /* +-0 gives +-infinity, which the slab tests expect */
         nonzero |= ray->dir[a] != 0.0f;
     }
+    if (ray->tmin != ray->tmin) return 0; /* NaN */
     s->tmin = ray->tmin > 0.0f ? ray->tmin : 0.0f;
     s->tmax = ray->tmax;
     return nonzero && s->tmin <= s->tmax; /* also false when tmax is NaN */
@@ -687,13 +710,16 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     kdrt_tree *tree = NULL;
     kdrt__builder b;
     float *scratch = NULL, p[3][3];
-    uint32_t *valid = NULL, *lists = NULL, n = 0, tri, skipped = 0, i;
+    uint32_t *valid = NULL, *lists = NULL, n = 0, tri, skipped = 0, degenerate = 0, i;
     kdrt__key *keys = NULL;
     kdrt_result r;
     size_t bytes;
     int a, k;
 
-    if (report) report->invalid_triangle = KDRT_INVALID_ID, report->skipped_triangles = 0;
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->invalid_triangle = KDRT_INVALID_ID;
+    }
     if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
     *out_tree = NULL;
     r = kdrt__check_view(mesh, &m);
@@ -737,20 +763,27 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
             ++skipped;
             continue;
         }
+        if (kdrt__zero_area(p)) {
+            ++degenerate;
+            continue;
+        }
         for (a = 0; a < 3; ++a) {
             lo[a] = hi[a] = p[0][a];
             for (k = 1; k < 3; ++k) {
                 if (p[k][a] < lo[a]) lo[a] = p[k][a];
                 if (p[k][a] > hi[a]) hi[a] = p[k][a];
             }
+            /* Rounding can put the mean a hair outside the corners (a triangle in the plane
+               x = 0.1 would get a centroid off that plane); keep it within them. */
             c[a] = (p[0][a] + p[1][a] + p[2][a]) * (1.0f / 3.0f);
+            c[a] = c[a] < lo[a] ? lo[a] : (c[a] > hi[a] ? hi[a] : c[a]);
         }
         kdrt_aabb_grow(&tree->bounds, lo);
         kdrt_aabb_grow(&tree->bounds, hi);
         valid[n++] = tri;
     }
     r = KDRT_SUCCESS;
-    if (report) report->skipped_triangles = skipped;
+    if (report) report->skipped_triangles = skipped, report->degenerate_triangles = degenerate;
 
     if (opt.max_leaf_size == 0 || n == 0) {
         /* No tree: one leaf holding every usable triangle, tested in order. */
@@ -835,7 +868,7 @@ static int kdrt__intersect_triangle(const kdrt_triangles *m, uint32_t tri, const
     pv[1] = s->dir[2] * e2[0] - s->dir[0] * e2[2];
     pv[2] = s->dir[0] * e2[1] - s->dir[1] * e2[0];
     det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-    if (det == 0.0f) return 0; /* parallel or degenerate */
+    if (det == 0.0f) return 0; /* parallel to the plane */
     inv_det = 1.0f / det;
     u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv_det;
     if (!(u >= 0.0f && u <= 1.0f)) return 0;
@@ -882,6 +915,13 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
                 KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
                 stack[sp].node = far_child, stack[sp].t0 = t0, stack[sp].t1 = t1, ++sp;
                 node = near_child;
+            } else if (t_split == 0.0f && t0 <= 0.0f) {
+                /* The origin is on the plane: the ray moves into near_child, but at t = 0 it
+                   also touches far_child's triangles lying in the plane. */
+                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
+                stack[sp].node = near_child, stack[sp].t0 = t0, stack[sp].t1 = t1, ++sp;
+                node = far_child;
+                t1 = 0.0f;
             } else if (t_split <= 0.0f || t_split * (1.0f - KDRT__T_SLACK) > t1) {
                 node = near_child; /* the plane is behind the origin or beyond the range */
             } else if (t_split * (1.0f + KDRT__T_SLACK) < t0) {
