@@ -1,3 +1,61 @@
+/* The header with its implementation as strict C99 (-std=c99 -Wall -Wextra -pedantic -Werror):
+   a tiny tree, one hit, one miss, kdrt_result_string. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
-int main(void) { return 0; }
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static int failures = 0;
+
+static void check(int ok, const char *what)
+{
+    if (!ok) {
+        fprintf(stderr, "smoke_c99: FAILED: %s\n", what);
+        ++failures;
+    }
+}
+
+int main(void)
+{
+    /* Two triangles: the unit square in the plane z = 0. */
+    static const float vertices[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    static const uint32_t indices[] = {0, 1, 2, 0, 2, 3};
+    kdrt_triangles mesh = {0};
+    kdrt_build_options options = kdrt_default_build_options();
+    kdrt_build_report report;
+    kdrt_tree *tree = NULL;
+    kdrt_ray down = {{0.25f, 0.75f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+    kdrt_ray beside = {{1.5f, 0.5f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+    kdrt_hit hit;
+    kdrt_result r;
+
+    mesh.positions = vertices;
+    mesh.vertex_count = 4;
+    mesh.indices = indices;
+    mesh.triangle_count = 2;
+    options.max_leaf_size = 1;
+    r = kdrt_tree_build(&mesh, &options, &tree, &report);
+    check(r == KDRT_SUCCESS && tree != NULL, "build");
+    if (!tree) return 1;
+
+    check(kdrt_intersect(tree, &down, &hit) == 1, "hit");
+    check(hit.triangle == 1, "hit: triangle 1");
+    check(hit.t > 1.999f && hit.t < 2.001f, "hit: t = 2");
+    check(kdrt_occluded(tree, &down) == 1, "occluded");
+    check(kdrt_intersect(tree, &beside, &hit) == 0, "miss");
+    check(hit.triangle == KDRT_INVALID_ID, "miss: triangle is KDRT_INVALID_ID");
+    check(kdrt_occluded(tree, &beside) == 0, "miss: not occluded");
+    kdrt_tree_free(tree);
+
+    check(strcmp(kdrt_result_string(KDRT_SUCCESS), "success") == 0, "kdrt_result_string(KDRT_SUCCESS)");
+    check(strcmp(kdrt_result_string(KDRT_ERROR_OUT_OF_MEMORY), "out of memory") == 0,
+          "kdrt_result_string(KDRT_ERROR_OUT_OF_MEMORY)");
+    check(kdrt_tree_build(NULL, &options, &tree, NULL) == KDRT_ERROR_NULL_ARGUMENT && tree == NULL,
+          "NULL mesh is KDRT_ERROR_NULL_ARGUMENT");
+
+    if (failures) return 1;
+    printf("smoke_c99: ok (kdrt %s)\n", KDRT_VERSION_STRING);
+    return 0;
+}

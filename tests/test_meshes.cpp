@@ -1,1 +1,35 @@
+// Every query on the shared meshes (../shared/meshes/seed and common, when present) against the
+// brute-force double-precision reference, for every leaf size (see kt::check_scene).
+#include "test_support.hpp"
+
 #include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <filesystem>
+
+TEST_CASE("shared meshes agree with the reference", "[meshes]") {
+    const std::vector<std::string> files = kt::shared_mesh_files();
+    if (files.empty()) {
+        WARN("skipped: no shared meshes (configure with -DKDRT_MESH_DIR=<folder holding seed/ and common/>; "
+             "the default is ../shared/meshes next to the repository)");
+        return;
+    }
+    size_t rays = kt::reference_ray_count();
+    for (size_t i = 0; i < files.size(); ++i) {
+        const std::string name = std::filesystem::path(files[i]).filename().string();
+        DYNAMIC_SECTION(name) {
+            kt::Mesh mesh;
+            std::string error;
+            bool loaded = kt::load_mesh(files[i], mesh, error);
+            INFO("loading " << files[i] << ": " << error);
+            REQUIRE(loaded);
+            mesh.name = name;
+            // Leaf size 0 tests every triangle against every ray, about 25 ns a test here: on the
+            // large meshes it traces a leading part of the rays (at least 2,000), so that the
+            // suite keeps to CI's time; every tree still traces all of them.
+            const double budget = 4e8 * double(rays) / 100000.0;  // triangle tests per mesh
+            const size_t brute = std::min(rays, std::max<size_t>(2000, size_t(budget / mesh.triangle_count())));
+            kt::check_scene(mesh, rays, 1000 + uint32_t(i), brute);
+        }
+    }
+}

@@ -1,12 +1,14 @@
 #include "test_support.hpp"
 
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
+#include "timing.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
@@ -37,35 +39,8 @@ void unit_direction(Rng &rng, double d[3]) {
     d[0] = r * std::cos(phi), d[1] = r * std::sin(phi), d[2] = z;
 }
 
-template <typename F>
-void parallel_for(size_t count, F &&body) {
-    unsigned threads = std::max(1u, std::thread::hardware_concurrency());
-    std::vector<std::thread> pool;
-    for (unsigned w = 0; w < threads; ++w)
-        pool.emplace_back([&, w] {
-            for (size_t i = w; i < count; i += threads) body(i);
-        });
-    for (auto &t : pool) t.join();
-}
 
 }  // namespace
-
-kdrt_triangles Mesh::view() const {
-    kdrt_triangles v{};
-    v.positions = positions.empty() ? nullptr : positions.data();
-    v.position_stride = 0;
-    v.vertex_count = vertex_count();
-    v.indices = indices.empty() ? nullptr : indices.data();
-    v.triangle_count = triangle_count();
-    return v;
-}
-
-void Mesh::corners(uint32_t triangle, double p[3][3]) const {
-    for (int k = 0; k < 3; ++k) {
-        size_t vtx = indices.empty() ? size_t(triangle) * 3 + k : indices[size_t(triangle) * 3 + k];
-        for (int a = 0; a < 3; ++a) p[k][a] = positions[vtx * 3 + a];
-    }
-}
 
 Mesh random_soup(uint32_t triangles, uint32_t seed) {
     Rng rng(seed);
@@ -149,32 +124,6 @@ Mesh as_soup(const Mesh &indexed) {
     return m;
 }
 
-bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
-    Assimp::Importer importer;
-    const aiScene *scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                                                       aiProcess_PreTransformVertices | aiProcess_SortByPType);
-    if (!scene) {
-        error = importer.GetErrorString();
-        return false;
-    }
-    out = Mesh();
-    out.name = std::filesystem::path(path).stem().string();
-    for (unsigned mi = 0; mi < scene->mNumMeshes; ++mi) {
-        const aiMesh *mesh = scene->mMeshes[mi];
-        uint32_t base = out.vertex_count();
-        for (unsigned v = 0; v < mesh->mNumVertices; ++v)
-            out.positions.insert(out.positions.end(), {mesh->mVertices[v].x, mesh->mVertices[v].y, mesh->mVertices[v].z});
-        for (unsigned f = 0; f < mesh->mNumFaces; ++f)
-            if (mesh->mFaces[f].mNumIndices == 3)  // points and lines are not surfaces
-                for (int k = 0; k < 3; ++k) out.indices.push_back(base + mesh->mFaces[f].mIndices[k]);
-    }
-    if (out.indices.empty()) {
-        error = "no triangles";
-        return false;
-    }
-    return true;
-}
-
 std::string shared_mesh_dir() {
     std::error_code ec;
     return std::filesystem::is_directory(KDRT_MESH_DIR, ec) ? std::string(KDRT_MESH_DIR) : std::string();
@@ -204,6 +153,9 @@ std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t s
         diag += ext[a] * ext[a];
     }
     diag = std::max(std::sqrt(diag), 1e-3);
+    // A flat scene (a plane, one triangle) has a box of zero thickness: every inside origin would
+    // lie on the triangles themselves, at t = 0 where either answer is right. Thicken it.
+    for (double &e : ext) e = std::max(e, 0.02 * diag);
     std::vector<kdrt_ray> rays(count);
     for (size_t i = 0; i < count; ++i) {
         kdrt_ray &r = rays[i];
@@ -230,117 +182,16 @@ std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t s
     return rays;
 }
 
-Oracle::Oracle(const Mesh &mesh) {
-    uint32_t n = mesh.triangle_count();
-    tri_.resize(size_t(n) * 9);
-    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-    for (uint32_t t = 0; t < n; ++t) {
-        double p[3][3];
-        mesh.corners(t, p);
-        for (int a = 0; a < 3; ++a) {
-            tri_[size_t(t) * 9 + a] = p[0][a];
-            tri_[size_t(t) * 9 + 3 + a] = p[1][a] - p[0][a];
-            tri_[size_t(t) * 9 + 6 + a] = p[2][a] - p[0][a];
-            for (auto &corner : p) lo[a] = std::min(lo[a], corner[a]), hi[a] = std::max(hi[a], corner[a]);
-        }
-    }
-    scene_size_ = n ? std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6}) : 1.0;
-}
-
-double Oracle::t_tolerance(const kdrt_ray &ray, double t) const {
-    double dlen = std::sqrt(double(ray.dir[0]) * ray.dir[0] + double(ray.dir[1]) * ray.dir[1] + double(ray.dir[2]) * ray.dir[2]);
-    double reach = std::sqrt(double(ray.org[0]) * ray.org[0] + double(ray.org[1]) * ray.org[1] + double(ray.org[2]) * ray.org[2]);
-    // Float coordinates carry an error relative to their magnitude, so far-from-origin scenes
-    // get a tolerance that grows with the distance from the origin as well.
-    return kRelativeT * (std::fabs(t) + (scene_size_ + reach) / dlen);
-}
-
-namespace {
-// Double-precision Moeller-Trumbore; returns false when the ray is parallel to the plane.
-bool plane_hit(const double *tri, const kdrt_ray &ray, double &t, double &b0, double &b1, double &b2, double &cosine) {
-    const double *p0 = tri, *e1 = tri + 3, *e2 = tri + 6;
-    double d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
-    double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-    if (det == 0) return false;
-    double tv[3] = {ray.org[0] - p0[0], ray.org[1] - p0[1], ray.org[2] - p0[2]};
-    double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2], tv[0] * e1[1] - tv[1] * e1[0]};
-    b1 = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
-    b2 = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
-    b0 = 1 - b1 - b2;
-    t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
-    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), dlen = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    cosine = std::fabs(det) / (nlen * dlen);
-    return std::isfinite(t);
-}
-}  // namespace
-
-Reference Oracle::trace(const kdrt_ray &ray) const {
-    Reference ref;
-    double tmin = std::max(0.0, double(ray.tmin)), tmax = ray.tmax;
-    size_t n = tri_.size() / 9;
-    for (size_t i = 0; i < n; ++i) {
-        double t, b0, b1, b2, cosine;
-        if (!plane_hit(&tri_[i * 9], ray, t, b0, b1, b2, cosine)) continue;
-        double tol = t_tolerance(ray, t);
-        // Sure: clear of the edges, of the range ends, and not grazing (where the float test's
-        // barycentrics lose their accuracy).
-        if (b0 < kEdgeMargin || b1 < kEdgeMargin || b2 < kEdgeMargin || cosine < 1e-3) continue;
-        if (t < tmin + tol || t > tmax - tol) continue;
-        if (!ref.sure_hit || t < ref.sure_t) ref.sure_hit = true, ref.sure_t = t, ref.sure_triangle = uint32_t(i);
-    }
-    return ref;
-}
-
-double Oracle::possible_t(const kdrt_ray &ray, uint32_t triangle) const {
-    if (size_t(triangle) * 9 >= tri_.size()) return -1;
-    double t, b0, b1, b2, cosine;
-    if (!plane_hit(&tri_[size_t(triangle) * 9], ray, t, b0, b1, b2, cosine)) return -1;
-    double tol = t_tolerance(ray, t);
-    if (b0 < -kEdgeMargin || b1 < -kEdgeMargin || b2 < -kEdgeMargin) return -1;
-    if (t < std::max(0.0, double(ray.tmin)) - tol || t > double(ray.tmax) + tol) return -1;
-    return t;
-}
-
-void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, const kdrt_hit &h, Agreement &tally) {
-    bool hit = h.triangle != KDRT_INVALID_ID;
-    std::ostringstream why;
-    ++tally.rays;
-    if (!hit) {
-        if (ref.sure_hit) why << "kdrt missed, reference hits triangle " << ref.sure_triangle << " at t=" << ref.sure_t;
-        else ++tally.exact;  // near-edge misses are fine either way; none is surely hit
-    } else {
-        double pt = oracle.possible_t(ray, h.triangle);
-        if (pt < 0) why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", which the ray misses";
-        else if (std::fabs(h.t - pt) > oracle.t_tolerance(ray, pt)) why << "kdrt t=" << h.t << " on triangle " << h.triangle << ", reference t=" << pt;
-        else if (ref.sure_hit && h.t > ref.sure_t + oracle.t_tolerance(ray, ref.sure_t))
-            why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", but triangle " << ref.sure_triangle << " is nearer at t=" << ref.sure_t;
-        else if (ref.sure_hit && h.triangle == ref.sure_triangle) ++tally.exact;
-        else ++tally.ambiguous;
-    }
-    std::string w = why.str();
-    if (!w.empty()) {
-        if (tally.wrong++ == 0) {
-            std::ostringstream r;
-            r.precision(9);
-            r << w << "; ray org=(" << ray.org[0] << "," << ray.org[1] << "," << ray.org[2] << ") dir=(" << ray.dir[0] << ","
-              << ray.dir[1] << "," << ray.dir[2] << ") tmin=" << ray.tmin << " tmax=" << ray.tmax;
-            tally.first_wrong = r.str();
-        }
-    }
-}
-
 std::vector<kdrt_hit> trace_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
     std::vector<kdrt_hit> hits(rays.size());
-    parallel_for(rays.size(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
     return hits;
 }
 
-std::vector<Reference> reference_all(const Oracle &oracle, const std::vector<kdrt_ray> &rays) {
-    std::vector<Reference> refs(rays.size());
-    parallel_for(rays.size(), [&](size_t i) { refs[i] = oracle.trace(rays[i]); });
-    return refs;
+std::vector<unsigned char> occluded_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
+    std::vector<unsigned char> occluded(rays.size());
+    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
+    return occluded;
 }
 
 TreePtr build(const Mesh &mesh, uint32_t max_leaf_size) {
@@ -361,6 +212,103 @@ size_t reference_ray_count() {
         if (v > 0) return size_t(v);
     }
     return 100000;
+}
+
+namespace {
+
+std::string hex_ray(const kdrt_ray &r) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf, "org=(%a, %a, %a) dir=(%a, %a, %a) tmin=%a tmax=%a", r.org[0], r.org[1], r.org[2],
+                  r.dir[0], r.dir[1], r.dir[2], r.tmin, r.tmax);
+    return buf;
+}
+
+std::string hex_hit(const kdrt_hit &h) {
+    if (h.triangle == KDRT_INVALID_ID) return "miss";
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "triangle %u t=%a (%.9g) u=%a v=%a", h.triangle, h.t, h.t, h.u, h.v);
+    return buf;
+}
+
+// Same answer bit for bit; on a miss only the triangle is specified.
+bool same_answer(const kdrt_hit &a, const kdrt_hit &b) {
+    if (a.triangle != b.triangle) return false;
+    return a.triangle == KDRT_INVALID_ID ||
+           (std::memcmp(&a.t, &b.t, sizeof a.t) == 0 && std::memcmp(&a.u, &b.u, sizeof a.u) == 0 &&
+            std::memcmp(&a.v, &b.v, sizeof a.v) == 0);
+}
+
+}  // namespace
+
+void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute_force_rays) {
+    const auto start = std::chrono::steady_clock::now();
+    kdrt_triangles view = mesh.view();
+    kdrt_aabb box;
+    REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
+    const std::vector<kdrt_ray> rays = random_rays(box, ray_count, seed);
+    const Oracle oracle(mesh);
+    const std::vector<Reference> refs = reference_all(oracle, rays);
+
+    std::ostringstream log;
+    brute_force_rays = std::min(brute_force_rays, rays.size());
+    log << mesh.name << ": " << mesh.triangle_count() << " triangles, " << rays.size() << " rays (leaf size 0: the first "
+        << brute_force_rays << ")\n"
+        << "  leaf    hits   exact  ambiguous  wrong  unlike leaf 0/1  occluded unlike hit";
+    std::vector<kdrt_hit> brute, first_tree;  // leaf size 0's answers, and the first tree's (all rays)
+    for (uint32_t leaf : kLeafSizes) {
+        TreePtr tree = build(mesh, leaf);
+        // Leaf size 0 tests every triangle for every ray; on big meshes it traces a leading part
+        // of the same ray set, and every tree is held to it there and to each other everywhere.
+        const std::vector<kdrt_ray> traced(rays.begin(), rays.begin() + std::ptrdiff_t(leaf == 0 ? brute_force_rays : rays.size()));
+        const std::vector<kdrt_hit> hits = trace_all(tree.get(), traced);
+        const std::vector<unsigned char> occluded = occluded_all(tree.get(), traced);
+        if (leaf == 0) brute = hits;
+        else if (first_tree.empty()) first_tree = hits;
+
+        Agreement tally;
+        size_t hit_count = 0, not_as_brute = 0, occluded_differs = 0;
+        std::string first_not_as_brute, first_occluded_differs;
+        for (size_t i = 0; i < traced.size(); ++i) {
+            const kdrt_hit &h = hits[i];
+            check_hit(oracle, refs[i], rays[i], h, tally);
+            hit_count += h.triangle != KDRT_INVALID_ID;
+            const bool by_brute = i < brute.size();
+            const kdrt_hit &baseline = by_brute ? brute[i] : first_tree[i];
+            if (!same_answer(h, baseline) && not_as_brute++ == 0)
+                first_not_as_brute = "ray " + std::to_string(i) + " " + hex_ray(rays[i]) + ": leaf size " +
+                                     (by_brute ? "0" : std::to_string(kLeafSizes[1])) + " gives " + hex_hit(baseline) +
+                                     ", this tree gives " + hex_hit(h);
+            if (bool(occluded[i]) != (h.triangle != KDRT_INVALID_ID) && occluded_differs++ == 0)
+                first_occluded_differs = "ray " + std::to_string(i) + " " + hex_ray(rays[i]) + ": kdrt_occluded " +
+                                         std::to_string(int(occluded[i])) + ", kdrt_intersect " + hex_hit(h);
+        }
+        char row[128];
+        std::snprintf(row, sizeof row, "\n  %4u %7zu %7zu %10zu %6zu %16zu %20zu", leaf, hit_count, tally.exact, tally.ambiguous,
+                      tally.wrong, not_as_brute, occluded_differs);
+        log << row;
+
+        INFO(mesh.name << ", leaf size " << leaf << ", " << rays.size() << " rays (seed " << seed << ")");
+        {
+            INFO("first wrong: " << tally.first_wrong);
+            CHECK(tally.wrong == 0);
+        }
+        {
+            INFO("ambiguous " << tally.ambiguous << " of " << tally.rays << " rays");
+            CHECK(tally.ambiguous * 200 <= tally.rays);  // at most 0.5%
+        }
+        {
+            INFO("first: " << first_not_as_brute);
+            CHECK(not_as_brute == 0);
+        }
+        {
+            INFO("first: " << first_occluded_differs);
+            CHECK(occluded_differs == 0);
+        }
+    }
+    char took[64];
+    std::snprintf(took, sizeof took, "\n  (%.1f s)", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    log << took;
+    WARN(log.str());
 }
 
 }  // namespace kt

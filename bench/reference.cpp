@@ -1,0 +1,182 @@
+#include "reference.hpp"
+#include "timing.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace kt {
+
+Oracle::Oracle(const Mesh &mesh) {
+    uint32_t n = mesh.triangle_count();
+    tri_.resize(size_t(n) * 9);
+    size_t padded = (size_t(n) + kBallBlock - 1) / kBallBlock * kBallBlock;
+    ball_x_.assign(padded, 0), ball_y_.assign(padded, 0), ball_z_.assign(padded, 0), ball_r2_.assign(padded, -1);
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (uint32_t t = 0; t < n; ++t) {
+        double p[3][3];
+        mesh.corners(t, p);
+        for (int a = 0; a < 3; ++a) {
+            tri_[size_t(t) * 9 + a] = p[0][a];
+            tri_[size_t(t) * 9 + 3 + a] = p[1][a] - p[0][a];
+            tri_[size_t(t) * 9 + 6 + a] = p[2][a] - p[0][a];
+            for (auto &corner : p) lo[a] = std::min(lo[a], corner[a]), hi[a] = std::max(hi[a], corner[a]);
+        }
+        // Centroid and farthest corner, the radius widened far beyond the rounding of the test.
+        double c[3], r2 = 0;
+        for (int a = 0; a < 3; ++a) c[a] = (p[0][a] + p[1][a] + p[2][a]) / 3;
+        for (auto &corner : p) {
+            double dx = corner[0] - c[0], dy = corner[1] - c[1], dz = corner[2] - c[2];
+            r2 = std::max(r2, dx * dx + dy * dy + dz * dz);
+        }
+        ball_x_[t] = c[0], ball_y_[t] = c[1], ball_z_[t] = c[2], ball_r2_[t] = r2 * (1 + 1e-6) + 1e-300;
+    }
+    scene_size_ = n ? std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6}) : 1.0;
+}
+
+double Oracle::t_tolerance(const kdrt_ray &ray, double t) const {
+    double dlen = std::sqrt(double(ray.dir[0]) * ray.dir[0] + double(ray.dir[1]) * ray.dir[1] + double(ray.dir[2]) * ray.dir[2]);
+    double reach = std::sqrt(double(ray.org[0]) * ray.org[0] + double(ray.org[1]) * ray.org[1] + double(ray.org[2]) * ray.org[2]);
+    // Float coordinates carry an error relative to their magnitude, so far-from-origin scenes
+    // get a tolerance that grows with the distance from the origin as well.
+    return kRelativeT * (std::fabs(t) + (scene_size_ + reach) / dlen);
+}
+
+double Oracle::t_tolerance(const kdrt_ray &ray, double t, uint32_t triangle) const {
+    const double *e1 = &tri_[size_t(triangle) * 9 + 3], *e2 = e1 + 3;
+    const double d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    double det = std::fabs(d[0] * n[0] + d[1] * n[1] + d[2] * n[2]);
+    double condition = std::sqrt((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]) *
+                                 (e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2])) / det;
+    return t_tolerance(ray, t) * std::max(1.0, condition / kWellConditioned);
+}
+
+namespace {
+// Double-precision Moeller-Trumbore on the float ray as given. False when the ray is parallel to
+// the triangle's plane or a barycentric is below `margin`; each is tested as soon as it is known,
+// because the brute-force reference spends nearly all its time rejecting triangles.
+bool plane_hit(const double *tri, const double o[3], const double d[3], double margin, double &t, double &det, double &b1,
+               double &b2) {
+    const double *p0 = tri, *e1 = tri + 3, *e2 = tri + 6;
+    double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+    det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    if (det == 0) return false;
+    double tv[3] = {o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]};
+    b1 = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
+    if (!(b1 >= margin)) return false;
+    double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2], tv[0] * e1[1] - tv[1] * e1[0]};
+    b2 = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
+    if (!(b2 >= margin) || !(1 - b1 - b2 >= margin)) return false;
+    t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+    return std::isfinite(t);
+}
+
+// |cos| of the angle between the ray and the triangle's normal, from plane_hit's det.
+double cosine(const double *tri, const double d[3], double det) {
+    const double *e1 = tri + 3, *e2 = tri + 6;
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    double nlen = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), dlen = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    return std::fabs(det) / (nlen * dlen);
+}
+
+// How far inside its edges a hit must be for the float test to agree. kEdgeMargin, unless the
+// float barycentrics are worse: (o - p0) . (d x e2) / det cancels when the origin is far from a
+// small triangle, leaving an error of a few roundings times cond |o - p0| / |edge|, where
+// cond = |d| |e1| |e2| / |det|. (Seen: a 0.0035-wide triangle of rocker-arm.obj from 1.1 away,
+// cond 8.5, with a float w of +3.9e-5 where the double one is -2.7e-5.)
+double edge_margin(const double *tri, const double o[3], const double d[3], double det) {
+    const double *p0 = tri, *e1 = tri + 3, *e2 = tri + 6;
+    auto len = [](double x, double y, double z) { return std::sqrt(x * x + y * y + z * z); };
+    double l1 = len(e1[0], e1[1], e1[2]), l2 = len(e2[0], e2[1], e2[2]);
+    double cond = len(d[0], d[1], d[2]) * l1 * l2 / std::fabs(det);
+    double reach = len(o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]);
+    return std::max(Oracle::kEdgeMargin, 4 * 0x1p-24 * cond * reach / std::min(l1, l2));
+}
+}  // namespace
+
+Reference Oracle::trace(const kdrt_ray &ray) const {
+    Reference ref;
+    const double o[3] = {ray.org[0], ray.org[1], ray.org[2]}, d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    double tmin = std::max(0.0, double(ray.tmin)), tmax = ray.tmax;
+    const size_t n = tri_.size() / 9;
+    // Still every triangle, but in blocks: first a cheap test that the ray's line meets the
+    // triangle's ball (|(c - o) x d|^2 <= r^2 |d|^2, a loop the compiler vectorises), then the
+    // exact double-precision test for the few that pass. A sure hit lies strictly inside its
+    // triangle, hence strictly inside the ball, so the cheap test never rejects one.
+    const double o0 = o[0], o1 = o[1], o2 = o[2], d0 = d[0], d1 = d[1], d2 = d[2];
+    double outside[kBallBlock];  // > 0: the line misses the ball (a double, so the loop vectorises)
+    for (size_t begin = 0; begin < n; begin += kBallBlock) {
+        const double *bx = &ball_x_[begin], *by = &ball_y_[begin], *bz = &ball_z_[begin], *br2 = &ball_r2_[begin];
+        for (size_t j = 0; j < kBallBlock; ++j) {  // the arrays are padded to whole blocks
+            double vx = bx[j] - o0, vy = by[j] - o1, vz = bz[j] - o2;
+            double cx = vy * d2 - vz * d1, cy = vz * d0 - vx * d2, cz = vx * d1 - vy * d0;
+            outside[j] = cx * cx + cy * cy + cz * cz - br2[j] * dd;
+        }
+        for (size_t j = 0; j < kBallBlock && begin + j < n; ++j) {
+            if (outside[j] > 0) continue;
+            const size_t i = begin + j;
+            // Sure: clear of the edges, of the range ends, and not grazing (where the float
+            // test's barycentrics lose their accuracy).
+            double t, det, b1, b2;
+            if (!plane_hit(&tri_[i * 9], o, d, kEdgeMargin, t, det, b1, b2)) continue;
+            if (ref.sure_hit && !(t < ref.sure_t)) continue;  // the lower index keeps a tie
+            double margin = edge_margin(&tri_[i * 9], o, d, det);
+            if (b1 < margin || b2 < margin || 1 - b1 - b2 < margin) continue;
+            double tol = t_tolerance(ray, t);
+            if (t < tmin + tol || t > tmax - tol) continue;
+            if (cosine(&tri_[i * 9], d, det) < 1e-3) continue;
+            ref.sure_hit = true, ref.sure_t = t, ref.sure_triangle = uint32_t(i);
+        }
+    }
+    return ref;
+}
+
+double Oracle::possible_t(const kdrt_ray &ray, uint32_t triangle) const {
+    if (size_t(triangle) * 9 >= tri_.size()) return -1;
+    const double o[3] = {ray.org[0], ray.org[1], ray.org[2]}, d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    double t, det, b1, b2;
+    if (!plane_hit(&tri_[size_t(triangle) * 9], o, d, -INFINITY, t, det, b1, b2)) return -1;
+    double margin = edge_margin(&tri_[size_t(triangle) * 9], o, d, det);
+    if (b1 < -margin || b2 < -margin || 1 - b1 - b2 < -margin) return -1;
+    double tol = t_tolerance(ray, t);
+    if (t < std::max(0.0, double(ray.tmin)) - tol || t > double(ray.tmax) + tol) return -1;
+    return t;
+}
+
+void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, const kdrt_hit &h, Agreement &tally) {
+    bool hit = h.triangle != KDRT_INVALID_ID;
+    std::ostringstream why;
+    ++tally.rays;
+    if (!hit) {
+        if (ref.sure_hit) why << "kdrt missed, reference hits triangle " << ref.sure_triangle << " at t=" << ref.sure_t;
+        else ++tally.exact;  // near-edge misses are fine either way; none is surely hit
+    } else {
+        double pt = oracle.possible_t(ray, h.triangle);
+        if (pt < 0) why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", which the ray misses";
+        else if (std::fabs(h.t - pt) > oracle.t_tolerance(ray, pt, h.triangle)) why << "kdrt t=" << h.t << " on triangle " << h.triangle << ", reference t=" << pt;
+        else if (ref.sure_hit && h.t > ref.sure_t + oracle.t_tolerance(ray, ref.sure_t, ref.sure_triangle))
+            why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", but triangle " << ref.sure_triangle << " is nearer at t=" << ref.sure_t;
+        else if (ref.sure_hit && h.triangle == ref.sure_triangle) ++tally.exact;
+        else ++tally.ambiguous;
+    }
+    std::string w = why.str();
+    if (!w.empty()) {
+        if (tally.wrong++ == 0) {
+            std::ostringstream r;
+            r.precision(9);
+            r << w << "; ray org=(" << ray.org[0] << "," << ray.org[1] << "," << ray.org[2] << ") dir=(" << ray.dir[0] << ","
+              << ray.dir[1] << "," << ray.dir[2] << ") tmin=" << ray.tmin << " tmax=" << ray.tmax;
+            tally.first_wrong = r.str();
+        }
+    }
+}
+
+std::vector<Reference> reference_all(const Oracle &oracle, const std::vector<kdrt_ray> &rays) {
+    std::vector<Reference> refs(rays.size());
+    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { refs[i] = oracle.trace(rays[i]); });
+    return refs;
+}
+
+}  // namespace kt

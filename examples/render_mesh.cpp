@@ -1,0 +1,380 @@
+// kdrt-render-mesh: load a mesh, build a kd-tree over it, cast one primary ray per pixel through a
+// pinhole camera that frames the mesh, shade hits with a headlight, write a PNG.
+//
+//   kdrt-render-mesh [MESH] [--size WxH] [--leaf-size N] -o OUT.png
+//
+// Reads what Assimp reads (OFF, OBJ, PLY, STL, glTF, ...). Without MESH it renders the Stanford
+// bunny from KDRT_MESH_DIR when that exists, else a torus it generates itself.
+#define KDRT_IMPLEMENTATION
+#include "kdrt.h"
+
+#include "mesh_io.hpp" // kt::Mesh and kt::load_mesh: Assimp, guarded against malformed files
+#include <stb_image_write.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <new>
+#include <string>
+#include <system_error>
+#include <thread>
+#include <vector>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#ifndef KDRT_MESH_DIR
+#define KDRT_MESH_DIR ""
+#endif
+
+namespace {
+
+const char *const kUsage =
+    "usage: kdrt-render-mesh [MESH] [--size WxH] [--leaf-size N] -o OUT.png\n"
+    "\n"
+    "Renders MESH (any format Assimp reads: OFF, OBJ, PLY, STL, glTF, ...) with one primary ray\n"
+    "per pixel traced through a kdrt kd-tree, and writes a PNG.\n"
+    "\n"
+    "  MESH           mesh file; default: the Stanford bunny from the mesh folder\n"
+    "                 (" KDRT_MESH_DIR "/common/stanford-bunny.obj)\n"
+    "                 when it exists, else a generated torus\n"
+    "  --size WxH     image size in pixels (default 800x600; sides 1..16384, at most 64 Mpixels)\n"
+    "  --leaf-size N  kd-tree leaf size (default 4; 0 = no tree, every ray tests every triangle)\n"
+    "  -o OUT.png     output file (required)\n"
+    "  --help         this text\n"
+    "\n"
+    "Tree statistics and build and trace times go to stderr.\n";
+
+using kt::Mesh;
+
+struct Vec3 {
+    double x, y, z;
+};
+Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
+double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+Vec3 normalize(Vec3 a)
+{
+    double len = std::sqrt(dot(a, a));
+    return len > 0 ? (1.0 / len) * a : a;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point start)
+{
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+bool file_exists(const std::string &path) { return !path.empty() && access(path.c_str(), R_OK) == 0; }
+
+// A torus around the y axis, tilted towards the camera so its hole shows.
+Mesh make_torus()
+{
+    const int rings = 96, sides = 48;
+    const double major = 1.0, minor = 0.35, tilt = 0.6;
+    const double pi = 3.14159265358979323846;
+    Mesh m;
+    m.name = "generated torus";
+    for (int i = 0; i < rings; ++i) {
+        const double a = 2 * pi * i / rings;
+        for (int j = 0; j < sides; ++j) {
+            const double b = 2 * pi * j / sides;
+            const double r = major + minor * std::cos(b);
+            const double x = r * std::cos(a), y = minor * std::sin(b), z = r * std::sin(a);
+            m.positions.push_back(float(x));
+            m.positions.push_back(float(y * std::cos(tilt) - z * std::sin(tilt)));
+            m.positions.push_back(float(y * std::sin(tilt) + z * std::cos(tilt)));
+        }
+    }
+    for (int i = 0; i < rings; ++i) {
+        for (int j = 0; j < sides; ++j) {
+            const uint32_t v00 = uint32_t(i * sides + j), v01 = uint32_t(i * sides + (j + 1) % sides);
+            const uint32_t v10 = uint32_t((i + 1) % rings * sides + j);
+            const uint32_t v11 = uint32_t((i + 1) % rings * sides + (j + 1) % sides);
+            const uint32_t quad[6] = {v00, v10, v11, v00, v11, v01};
+            m.indices.insert(m.indices.end(), quad, quad + 6);
+        }
+    }
+    return m;
+}
+
+bool parse_uint(const char *text, unsigned long max, unsigned long &out)
+{
+    if (!text || *text < '0' || *text > '9') return false;
+    char *end = nullptr;
+    errno = 0;
+    const unsigned long value = std::strtoul(text, &end, 10);
+    if (errno != 0 || *end != '\0' || value > max) return false;
+    out = value;
+    return true;
+}
+
+bool parse_size(const std::string &text, int &width, int &height)
+{
+    const size_t x = text.find('x');
+    if (x == std::string::npos) return false;
+    const std::string w = text.substr(0, x), h = text.substr(x + 1);
+    unsigned long wv = 0, hv = 0;
+    if (!parse_uint(w.c_str(), 16384, wv) || !parse_uint(h.c_str(), 16384, hv) || wv == 0 || hv == 0)
+        return false;
+    width = int(wv), height = int(hv);
+    return true;
+}
+
+// stbi_write_png_to_func's sink: our own FILE, so every write error is seen.
+struct Sink {
+    FILE *file;
+    bool ok;
+};
+void write_to_sink(void *context, void *data, int size)
+{
+    Sink *sink = static_cast<Sink *>(context);
+    if (sink->ok && std::fwrite(data, 1, size_t(size), sink->file) != size_t(size)) sink->ok = false;
+}
+
+// Writes the PNG to a temporary file beside path and renames it over path, so a failed run
+// leaves no output file behind.
+bool write_png(const std::string &path, int width, int height, const std::vector<unsigned char> &rgb,
+               std::string &error)
+{
+    struct stat target;
+    if (stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode)) {
+        error = "cannot write " + path + ": it exists and is not a regular file";
+        return false;
+    }
+    const std::string tmp = path + ".tmp-" + std::to_string(long(getpid()));
+    Sink sink = {std::fopen(tmp.c_str(), "wb"), true};
+    if (!sink.file) {
+        error = "cannot create " + tmp + ": " + std::strerror(errno);
+        return false;
+    }
+    const int encoded = stbi_write_png_to_func(write_to_sink, &sink, width, height, 3, rgb.data(), width * 3);
+    const int write_errno = errno;
+    const bool closed = std::fclose(sink.file) == 0;
+    if (!encoded || !sink.ok || !closed) {
+        error = encoded ? "cannot write " + tmp + ": " + std::strerror(write_errno)
+                        : std::string("cannot encode the PNG (out of memory?)");
+        std::remove(tmp.c_str());
+        return false;
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        error = "cannot rename " + tmp + " to " + path + ": " + std::strerror(errno);
+        std::remove(tmp.c_str());
+        return false;
+    }
+    return true;
+}
+
+int fail(const std::string &message)
+{
+    std::fprintf(stderr, "kdrt-render-mesh: %s\n", message.c_str());
+    return 1;
+}
+
+} // namespace
+
+static int run(int argc, char **argv)
+{
+    std::string mesh_path, out_path;
+    int width = 800, height = 600;
+    unsigned long leaf_size = KDRT_DEFAULT_MAX_LEAF_SIZE;
+
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        const bool has_value = i + 1 < argc;
+        if (arg == "--help" || arg == "-h") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        } else if (arg == "-o") {
+            if (!has_value) return fail("-o needs a file name");
+            out_path = argv[++i];
+        } else if (arg == "--size") {
+            if (!has_value) return fail("--size needs WxH, e.g. --size 800x600");
+            if (!parse_size(argv[++i], width, height))
+                return fail(std::string("bad --size '") + argv[i] + "': expected WxH with each side 1..16384");
+        } else if (arg == "--leaf-size") {
+            if (!has_value) return fail("--leaf-size needs a number");
+            if (!parse_uint(argv[++i], 0xFFFFFFFFul, leaf_size))
+                return fail(std::string("bad --leaf-size '") + argv[i] + "': expected a whole number");
+        } else if (arg.size() > 1 && arg[0] == '-') {
+            std::fputs(kUsage, stderr);
+            return fail("unknown option " + arg);
+        } else if (mesh_path.empty()) {
+            mesh_path = arg;
+        } else {
+            return fail("more than one mesh given: " + mesh_path + " and " + arg);
+        }
+    }
+    if (out_path.empty()) {
+        std::fputs(kUsage, stderr);
+        return fail("no output file: give -o OUT.png");
+    }
+    if (uint64_t(width) * uint64_t(height) > (uint64_t(1) << 26))
+        return fail("--size " + std::to_string(width) + "x" + std::to_string(height) +
+                    " is more than 64 Mpixels");
+
+    // The mesh.
+    Mesh mesh;
+    if (mesh_path.empty()) {
+        const std::string bunny = std::string(KDRT_MESH_DIR) + "/common/stanford-bunny.obj";
+        if (file_exists(bunny)) {
+            mesh_path = bunny;
+        } else {
+            mesh = make_torus();
+            std::fprintf(stderr, "mesh: %s (no %s)\n", mesh.name.c_str(), bunny.c_str());
+        }
+    }
+    if (!mesh_path.empty()) {
+        std::string error;
+        if (!file_exists(mesh_path)) return fail("cannot read mesh " + mesh_path + ": " + std::strerror(errno));
+        if (!kt::load_mesh(mesh_path, mesh, error)) return fail("cannot load mesh " + mesh_path + ": " + error);
+        std::fprintf(stderr, "mesh: %s\n", mesh_path.c_str());
+    }
+
+    kdrt_triangles view = {};
+    view.positions = mesh.positions.data();
+    view.position_stride = 0;
+    view.vertex_count = uint32_t(mesh.positions.size() / 3);
+    view.indices = mesh.indices.data();
+    view.triangle_count = uint32_t(mesh.indices.size() / 3);
+
+    // The tree.
+    kdrt_build_options options = kdrt_default_build_options();
+    options.max_leaf_size = uint32_t(leaf_size);
+    kdrt_tree *tree = nullptr;
+    kdrt_build_report report;
+    const auto build_start = std::chrono::steady_clock::now();
+    const kdrt_result built = kdrt_tree_build(&view, &options, &tree, &report);
+    const double build_seconds = seconds_since(build_start);
+    if (built != KDRT_SUCCESS) {
+        std::string message = "cannot build the tree: " + std::string(kdrt_result_string(built));
+        if (report.invalid_triangle != KDRT_INVALID_ID) {
+            const uint32_t t = report.invalid_triangle;
+            message += "\n  first bad triangle: " + std::to_string(t);
+            if (t < view.triangle_count) {
+                for (int k = 0; k < 3; ++k) {
+                    const uint32_t v = mesh.indices[size_t(t) * 3 + size_t(k)];
+                    char line[160];
+                    if (v < view.vertex_count)
+                        std::snprintf(line, sizeof line, "\n  vertex %u: (%g, %g, %g)", v,
+                                      double(mesh.positions[size_t(v) * 3]), double(mesh.positions[size_t(v) * 3 + 1]),
+                                      double(mesh.positions[size_t(v) * 3 + 2]));
+                    else
+                        std::snprintf(line, sizeof line, "\n  vertex %u: out of range", v);
+                    message += line;
+                }
+            }
+        }
+        return fail(message);
+    }
+
+    kdrt_tree_stats stats;
+    kdrt_tree_get_stats(tree, &stats);
+    std::fprintf(stderr,
+                 "tree: %u triangles, %u nodes, %u leaves, max depth %u, %llu triangle references "
+                 "(%.2f per triangle), %.1f KiB, leaf size %u\n",
+                 stats.triangles, stats.nodes, stats.leaves, stats.max_depth,
+                 (unsigned long long)stats.triangle_refs,
+                 stats.triangles ? double(stats.triangle_refs) / stats.triangles : 0.0, double(stats.bytes) / 1024.0,
+                 options.max_leaf_size);
+    std::fprintf(stderr, "build: %.3f s\n", build_seconds);
+
+    // The camera: looks at the centre of the mesh's box from the front (+z), a little from the
+    // right and above, with +y up, far enough back that the box's bounding sphere fits the view.
+    const kdrt_aabb box = kdrt_tree_bounds(tree);
+    const Vec3 lo = {box.min[0], box.min[1], box.min[2]}, hi = {box.max[0], box.max[1], box.max[2]};
+    const Vec3 center = 0.5 * (lo + hi);
+    const double radius = std::max(0.5 * std::sqrt(dot(hi - lo, hi - lo)), 1e-30);
+    const double pi = 3.14159265358979323846;
+    const double half_fov = 0.5 * 35.0 * pi / 180.0; // vertical field of view: 35 degrees
+    const double aspect = double(width) / height;
+    const double tan_half = std::tan(half_fov);
+    const double fit = std::min(tan_half, tan_half * aspect); // tangent of the narrower half-angle
+    const double distance = 1.05 * radius * std::sqrt(1.0 + 1.0 / (fit * fit));
+    const Vec3 back = normalize(Vec3{0.35, 0.25, 1.0});
+    const Vec3 eye = center + distance * back;
+    const Vec3 forward = -1.0 * back;
+    const Vec3 right = normalize(cross(forward, Vec3{0, 1, 0}));
+    const Vec3 up = cross(right, forward);
+
+    // Trace: rows are handed out to the threads one at a time; the tree is const and shared.
+    std::vector<unsigned char> rgb(size_t(width) * size_t(height) * 3);
+    std::atomic<int> next_row(0);
+    std::atomic<uint64_t> hits(0);
+    auto trace_rows = [&]() {
+        uint64_t my_hits = 0;
+        for (int y; (y = next_row.fetch_add(1)) < height;) {
+            for (int x = 0; x < width; ++x) {
+                // Row 0 is the top of the image.
+                const double sx = (2.0 * (x + 0.5) / width - 1.0) * tan_half * aspect;
+                const double sy = (1.0 - 2.0 * (y + 0.5) / height) * tan_half;
+                const Vec3 d = normalize(forward + sx * right + sy * up);
+                kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f,
+                                {float(d.x), float(d.y), float(d.z)}, INFINITY};
+                kdrt_hit hit;
+                double r = 0.30, g = 0.30, b = 0.32; // background
+                if (kdrt_intersect(tree, &ray, &hit)) {
+                    ++my_hits;
+                    Vec3 p[3];
+                    for (int k = 0; k < 3; ++k) {
+                        const float *v = &mesh.positions[size_t(mesh.indices[size_t(hit.triangle) * 3 + size_t(k)]) * 3];
+                        p[k] = Vec3{v[0], v[1], v[2]};
+                    }
+                    // Headlight: the light sits at the eye, so the Lambert term is |cos| between
+                    // the ray and the geometric normal (either side of the triangle is lit).
+                    const Vec3 n = normalize(cross(p[1] - p[0], p[2] - p[0]));
+                    const double lambert = std::fabs(dot(n, d));
+                    const double shade = 0.08 + 0.92 * lambert;
+                    r = 0.95 * shade, g = 0.88 * shade, b = 0.78 * shade;
+                }
+                unsigned char *px = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
+                px[0] = (unsigned char)std::lround(255.0 * std::min(1.0, r));
+                px[1] = (unsigned char)std::lround(255.0 * std::min(1.0, g));
+                px[2] = (unsigned char)std::lround(255.0 * std::min(1.0, b));
+            }
+        }
+        hits += my_hits;
+    };
+    const unsigned thread_count = std::max(1u, std::thread::hardware_concurrency());
+    const auto trace_start = std::chrono::steady_clock::now();
+    std::vector<std::thread> threads;
+    for (unsigned i = 1; i < thread_count; ++i) {
+        try {
+            threads.emplace_back(trace_rows);
+        } catch (const std::system_error &) {
+            break; // trace with the threads we have
+        }
+    }
+    trace_rows();
+    for (std::thread &t : threads) t.join();
+    const double trace_seconds = seconds_since(trace_start);
+    const double rays = double(width) * height;
+    std::fprintf(stderr, "trace: %.3f s for %dx%d primary rays on %u threads (%.2f Mrays/s, %.1f%% hit)\n",
+                 trace_seconds, width, height, thread_count, rays / std::max(trace_seconds, 1e-9) / 1e6,
+                 100.0 * double(hits.load()) / rays);
+    kdrt_tree_free(tree);
+
+    std::string error;
+    if (!write_png(out_path, width, height, rgb, error)) return fail(error);
+    std::fprintf(stderr, "wrote %s\n", out_path.c_str());
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    try {
+        return run(argc, argv);
+    } catch (const std::bad_alloc &) {
+        return fail("out of memory");
+    } catch (const std::exception &e) {
+        return fail(e.what());
+    }
+}
