@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs the Debian packages kdrt's build, tests and examples need, when they are missing.
+# Installs the Debian packages kdrt's build, tests, examples, bench and plots need, when missing.
 set -euo pipefail
 
 # Every package the project needs, in one place: add new ones here.
@@ -11,6 +11,8 @@ PACKAGES=(
   catch2          # the test framework (Catch2 v2)
   libassimp-dev   # mesh loading in the tests and examples
   libstb-dev      # stb_image_write for the example's PNG output
+  libembree-dev   # Embree 3: only kdrt-bench's --compare embree, the peer speed is stated against
+  python3-matplotlib  # tools/plot_bench.py
 )
 
 usage() {

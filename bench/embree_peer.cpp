@@ -1,0 +1,86 @@
+#include "embree_peer.hpp"
+#include "timing.hpp"
+
+#ifdef KDRT_BENCH_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#include <cstring>
+#endif
+
+namespace kb {
+
+#ifndef KDRT_BENCH_HAVE_EMBREE
+
+bool embree_available() { return false; }
+
+bool embree_run(const kt::Mesh &, const std::vector<kdrt_ray> &, unsigned, PeerRun &, std::string &error) {
+    error = "this kdrt-bench was built without Embree (install libembree-dev and configure again)";
+    return false;
+}
+
+#else
+
+bool embree_available() { return true; }
+
+bool embree_run(const kt::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
+                std::string &error) {
+    RTCDevice device = rtcNewDevice("threads=1");  // its build on one thread, like kdrt's
+    if (!device) {
+        error = "rtcNewDevice failed";
+        return false;
+    }
+    RTCScene scene = rtcNewScene(device);
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    // Embree's own buffers (it reads vertex buffers 16 bytes at a time, past a packed array's end).
+    auto *vertices = static_cast<float *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                                   3 * sizeof(float), mesh.vertex_count()));
+    auto *indices = static_cast<unsigned *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                     3 * sizeof(unsigned), mesh.triangle_count()));
+    if (!vertices || !indices) {
+        error = "Embree could not allocate its buffers";
+        rtcReleaseGeometry(geometry);
+        rtcReleaseScene(scene);
+        rtcReleaseDevice(device);
+        return false;
+    }
+    std::memcpy(vertices, mesh.positions.data(), mesh.positions.size() * sizeof(float));
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t)
+        for (int k = 0; k < 3; ++k) indices[3 * t + k] = mesh.indices.empty() ? 3 * t + k : mesh.indices[3 * size_t(t) + k];
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(scene, geometry);
+    rtcReleaseGeometry(geometry);
+
+    Stopwatch build_clock;
+    rtcCommitScene(scene);
+    out.build_ms = build_clock.ms();
+    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) {
+        error = "Embree failed to build the scene";
+        rtcReleaseScene(scene);
+        rtcReleaseDevice(device);
+        return false;
+    }
+
+    out.hits.assign(rays.size(), kdrt_hit{});
+    out.trace_ms = timed_parallel(rays.size(), threads, [&](size_t i) {
+        const kdrt_ray &r = rays[i];
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        RTCRayHit rh;
+        rh.ray.org_x = r.org[0], rh.ray.org_y = r.org[1], rh.ray.org_z = r.org[2];
+        rh.ray.dir_x = r.dir[0], rh.ray.dir_y = r.dir[1], rh.ray.dir_z = r.dir[2];
+        rh.ray.tnear = r.tmin, rh.ray.tfar = r.tmax, rh.ray.time = 0, rh.ray.mask = ~0u, rh.ray.id = 0, rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &context, &rh);
+        kdrt_hit &h = out.hits[i];
+        bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+        h.triangle = hit ? rh.hit.primID : KDRT_INVALID_ID;
+        h.t = rh.ray.tfar, h.u = rh.hit.u, h.v = rh.hit.v;
+    });
+    rtcReleaseScene(scene);
+    rtcReleaseDevice(device);
+    return true;
+}
+
+#endif
+
+}  // namespace kb

@@ -1,0 +1,24 @@
+// The same rays through Embree 3, the peer kdrt's speed is stated against. Optional: without
+// Embree at configure time, embree_available() is false and the bench says so.
+#pragma once
+
+#include "kdrt.h"
+#include "mesh_io.hpp"
+
+#include <string>
+#include <vector>
+
+namespace kb {
+
+struct PeerRun {
+    double build_ms = 0, trace_ms = 0;
+    std::vector<kdrt_hit> hits;  // in kdrt's terms: triangle, t, u, v (KDRT_INVALID_ID on a miss)
+};
+
+bool embree_available();
+// Builds at RTC_BUILD_QUALITY_MEDIUM on one thread, then traces with rtcIntersect1 on `threads`
+// threads. false with a message if Embree fails.
+bool embree_run(const kt::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
+                std::string &error);
+
+}  // namespace kb

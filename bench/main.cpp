@@ -1,0 +1,240 @@
+// kdrt-bench: the original course ray tracer's leaf-size benchmark, with an error count beside
+// every timing and Embree measured in the same run. See --help and README.md.
+#define KDRT_IMPLEMENTATION
+#include "kdrt.h"
+
+#include "bench.hpp"
+#include "embree_peer.hpp"
+#include "reference.hpp"
+#include "timing.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Input {
+    std::string label;  // CSV Mesh column
+    kt::Mesh mesh;
+};
+
+std::string upper_stem(const std::string &path) {
+    std::string stem = fs::path(path).stem().string();
+    for (char &c : stem) c = char(std::toupper(static_cast<unsigned char>(c)));
+    return stem;
+}
+
+bool is_mesh_file(const fs::path &p) {
+    std::string ext = p.extension().string();
+    for (char &c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext == ".off" || ext == ".obj" || ext == ".ply" || ext == ".stl" || ext == ".gltf" || ext == ".glb";
+}
+
+// Files named on the command line, and the mesh files inside named folders (sorted).
+std::vector<std::string> expand_inputs(const std::vector<std::string> &args) {
+    std::vector<std::string> files;
+    for (const std::string &arg : args) {
+        std::error_code ec;
+        if (fs::is_directory(arg, ec)) {
+            std::vector<std::string> inside;
+            for (const auto &entry : fs::directory_iterator(arg, ec))
+                if (entry.is_regular_file(ec) && is_mesh_file(entry.path())) inside.push_back(entry.path().string());
+            std::sort(inside.begin(), inside.end());
+            files.insert(files.end(), inside.begin(), inside.end());
+        } else {
+            files.push_back(arg);  // a missing file is reported when it fails to load
+        }
+    }
+    return files;
+}
+
+// Stand-ins when no mesh folder is around: a sphere and a torus of a few thousand triangles.
+std::vector<Input> generated_inputs() {
+    std::vector<Input> inputs;
+    for (int shape = 0; shape < 2; ++shape) {
+        Input in;
+        in.label = shape == 0 ? "GENERATED_SPHERE" : "GENERATED_TORUS";
+        const uint32_t rings = 48, segments = 96;
+        for (uint32_t r = 0; r <= rings; ++r)
+            for (uint32_t s = 0; s <= segments; ++s) {
+                double u = 2 * M_PI * s / segments, v = (shape == 0 ? M_PI : 2 * M_PI) * r / rings;
+                double x, y, z;
+                if (shape == 0) x = std::sin(v) * std::cos(u), y = std::cos(v), z = std::sin(v) * std::sin(u);
+                else x = (1 + 0.4 * std::cos(v)) * std::cos(u), y = 0.4 * std::sin(v), z = (1 + 0.4 * std::cos(v)) * std::sin(u);
+                in.mesh.positions.insert(in.mesh.positions.end(), {float(x), float(y), float(z)});
+            }
+        for (uint32_t r = 0; r < rings; ++r)
+            for (uint32_t s = 0; s < segments; ++s) {
+                uint32_t a = r * (segments + 1) + s, b = a + 1, c = a + segments + 1, d = c + 1;
+                in.mesh.indices.insert(in.mesh.indices.end(), {a, c, d, a, d, b});
+            }
+        inputs.push_back(std::move(in));
+    }
+    return inputs;
+}
+
+// Progress on stderr: a bar with ETA on a terminal, a line per mesh otherwise.
+struct Progress {
+    size_t total = 0, done = 0;
+    bool terminal = isatty(STDERR_FILENO) != 0;
+    kb::Stopwatch clock;
+    void step(const std::string &what) {
+        ++done;
+        if (!terminal) return;
+        double elapsed = clock.ms() / 1000.0, eta = done ? elapsed / done * double(total - done) : 0.0;
+        int filled = total ? int(30.0 * done / total) : 30;
+        std::fprintf(stderr, "\r[%-30s] %zu/%zu  ETA %5.0f s  %-40.40s", std::string(size_t(filled), '#').c_str(), done,
+                     total, eta, what.c_str());
+        if (done == total) std::fputc('\n', stderr);
+        std::fflush(stderr);
+    }
+    void note(const std::string &line) {
+        std::fprintf(stderr, terminal ? "\r%-110s\n" : "%s\n", line.c_str());
+        std::fflush(stderr);
+    }
+};
+
+}  // namespace
+
+int main(int argc, char **argv) {
+    kb::Options opt;
+    std::string error;
+    if (!kb::parse_options(argc, argv, opt, error)) {
+        std::fprintf(stderr, "kdrt-bench: %s\n", error.c_str());
+        return 2;
+    }
+    if (opt.help) {
+        std::fputs(kb::usage().c_str(), stdout);
+        return 0;
+    }
+    if (opt.compare_embree && !kb::embree_available()) {
+        std::fprintf(stderr, "kdrt-bench: --compare embree is unavailable: this kdrt-bench was built without Embree "
+                             "(install libembree-dev and configure again)\n");
+        return 2;
+    }
+    // Open the output before any work, so an unwritable path costs nothing.
+    FILE *out = stdout;
+    std::unique_ptr<FILE, int (*)(FILE *)> file(nullptr, std::fclose);
+    if (!opt.output.empty()) {
+        file.reset(std::fopen(opt.output.c_str(), "w"));
+        if (!file) {
+            std::fprintf(stderr, "kdrt-bench: cannot write '%s': %s\n", opt.output.c_str(), std::strerror(errno));
+            return 1;
+        }
+        out = file.get();
+    }
+
+    Progress progress;
+    int failures = 0;
+    std::vector<Input> inputs;
+    std::vector<std::string> args = opt.inputs;
+    if (args.empty() && fs::is_directory(KDRT_MESH_DIR "/seed")) args.push_back(KDRT_MESH_DIR "/seed");
+    if (args.empty()) {
+        progress.note("kdrt-bench: no meshes given and " KDRT_MESH_DIR "/seed is absent: using generated meshes");
+        inputs = generated_inputs();
+    }
+    for (const std::string &path : expand_inputs(args)) {
+        Input in;
+        in.label = upper_stem(path);
+        if (!kt::load_mesh(path, in.mesh, error)) {
+            progress.note("kdrt-bench: skipping " + path + ": " + error);
+            ++failures;
+            continue;
+        }
+        inputs.push_back(std::move(in));
+    }
+    for (Input &in : inputs)
+        if (opt.subdivide) in.mesh = kt::subdivided(in.mesh, opt.subdivide), in.label += "_SUB" + std::to_string(opt.subdivide);
+
+    for (const Input &in : inputs)
+        progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() + opt.compare_embree);
+
+    std::fprintf(out, "%s\n", kb::csv_header().c_str());
+    std::fflush(out);
+    const uint32_t seed = 1;
+    for (const Input &in : inputs) {
+        const kb::Scene scene = kb::make_scene(in.mesh, in.label);
+        const kdrt_triangles view = scene.geometry.view();
+        kdrt_tree *scout = nullptr;  // for the diffuse rays' primary hits and the random rays' box
+        kdrt_build_report report;
+        kdrt_result r = kdrt_tree_build(&view, nullptr, &scout, &report);
+        if (r != KDRT_SUCCESS) {
+            progress.note("kdrt-bench: skipping " + in.label + ": " + kdrt_result_string(r) +
+                          (report.invalid_triangle != KDRT_INVALID_ID ? " (triangle " + std::to_string(report.invalid_triangle) + ")" : ""));
+            ++failures;
+            continue;
+        }
+        const std::vector<kdrt_ray> rays = kb::make_rays(scene, opt.rays, opt.width, opt.height, scout, seed);
+        kdrt_tree_free(scout);
+
+        // The reference for a fixed sample of the rays, computed once for every row of this mesh.
+        const kt::Oracle oracle(scene.geometry);
+        const std::vector<size_t> sample = kb::reference_sample(rays.size(), opt.reference_rays, seed);
+        std::vector<kdrt_ray> sampled;
+        for (size_t i : sample) sampled.push_back(rays[i]);
+        const std::vector<kt::Reference> refs = kt::reference_all(oracle, sampled);
+
+        kb::Row row;
+        row.mesh = in.label;
+        row.triangles = scene.geometry.triangle_count();
+        row.rays = rays.size();
+        row.reference_rays = sample.size();
+        std::vector<kdrt_hit> hits(rays.size());
+        for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
+            for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                kdrt_build_options options = kdrt_default_build_options();
+                options.max_leaf_size = leaf;
+                kdrt_tree *tree = nullptr;
+                kb::Stopwatch build_clock;
+                r = kdrt_tree_build(&view, &options, &tree, nullptr);
+                row.build_ms = build_clock.ms();
+                if (r != KDRT_SUCCESS) {
+                    progress.note("kdrt-bench: " + in.label + " leaf size " + std::to_string(leaf) + ": " + kdrt_result_string(r));
+                    ++failures;
+                    continue;
+                }
+                row.trace_ms = kb::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                kdrt_tree_get_stats(tree, &row.stats);
+                kdrt_tree_free(tree);
+                row.builder = opt.builder;
+                row.max_leaf_size = int(leaf);
+                row.has_tree_stats = true;
+                row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
+                std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
+                std::fflush(out);  // an interrupted run keeps every row written so far
+                progress.step(in.label + " leaf " + std::to_string(leaf));
+            }
+        if (opt.compare_embree)
+            for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                kb::PeerRun peer;
+                if (!kb::embree_run(scene.geometry, rays, opt.threads, peer, error)) {
+                    progress.note("kdrt-bench: " + in.label + ": Embree: " + error);
+                    ++failures;
+                    break;
+                }
+                row.builder = "embree";
+                row.max_leaf_size = -1;
+                row.has_tree_stats = false;
+                row.build_ms = peer.build_ms;
+                row.trace_ms = peer.trace_ms;
+                row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
+                std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
+                std::fflush(out);
+                progress.step(in.label + " embree");
+            }
+    }
+    if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");
+    return failures ? 1 : 0;
+}

@@ -1,0 +1,118 @@
+#!/usr/bin/python3
+"""Plots a kdrt-bench CSV: time against max leaf size (log-log, like the original report's
+figure), speedup over leaf size 0, and speed against error (kdrt beside Embree).
+
+usage: tools/plot_bench.py BENCH.csv [-o PREFIX]
+
+Writes PREFIX-elapsed.{png,svg}, PREFIX-speedup.{png,svg} and PREFIX-speed-vs-error.{png,svg}
+(PREFIX defaults to the CSV's path without .csv). Needs Debian's python3-matplotlib.
+"""
+import argparse
+import csv
+import statistics
+import sys
+from collections import defaultdict
+
+
+def read_rows(path):
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f, delimiter=";")
+        missing = {"Mesh", "MaxLeafSize", "ElapsedMs"} - set(reader.fieldnames or [])
+        if missing:
+            sys.exit(f"plot_bench: {path}: not a kdrt-bench CSV (no {', '.join(sorted(missing))} column)")
+        return list(reader)
+
+
+def median_by(rows, key, value):
+    groups = defaultdict(list)
+    for r in rows:
+        groups[key(r)].append(value(r))
+    return {k: statistics.median(v) for k, v in groups.items()}
+
+
+def save(fig, prefix, name):
+    for ext in ("png", "svg"):
+        fig.savefig(f"{prefix}-{name}.{ext}", dpi=120, bbox_inches="tight")
+    print(f"wrote {prefix}-{name}.png and .svg")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("csv", help="CSV written by kdrt-bench")
+    parser.add_argument("-o", "--output", help="prefix of the image files (default: the CSV's name)")
+    args = parser.parse_args()
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        sys.exit("plot_bench: needs matplotlib: apt-get install python3-matplotlib")
+
+    try:
+        rows = read_rows(args.csv)
+    except OSError as e:
+        sys.exit(f"plot_bench: {e}")
+    prefix = args.output or (args.csv[:-4] if args.csv.endswith(".csv") else args.csv)
+    kd = [r for r in rows if r.get("Builder", "median") != "embree"]
+    peer = [r for r in rows if r.get("Builder") == "embree"]
+    if not kd:
+        sys.exit(f"plot_bench: {args.csv}: no kd-tree rows")
+    meshes = sorted({r["Mesh"] for r in kd}, key=lambda m: int(next(r.get("Triangles", "0") for r in kd if r["Mesh"] == m) or 0))
+    elapsed = median_by(kd, lambda r: (r["Mesh"], int(r["MaxLeafSize"])), lambda r: float(r.get("TraceMs") or r["ElapsedMs"]))
+
+    # 1. Trace time against max leaf size (leaf size 0, no tree, drawn at x = 0.5 on the log axis).
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for m in meshes:
+        pts = sorted((leaf, ms) for (mesh, leaf), ms in elapsed.items() if mesh == m)
+        ax.plot([leaf if leaf else 0.5 for leaf, _ in pts], [ms for _, ms in pts], marker="o", ms=3, label=m)
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("max leaf size (0.5 = no tree)")
+    ax.set_ylabel("trace time of the frame, ms")
+    ax.set_title("kdrt-bench: frame time against max leaf size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    save(fig, prefix, "elapsed")
+
+    # 2. Speedup over leaf size 0 (brute force).
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for m in meshes:
+        base = elapsed.get((m, 0))
+        if not base:
+            continue
+        pts = sorted((leaf, base / ms) for (mesh, leaf), ms in elapsed.items() if mesh == m and leaf > 0 and ms > 0)
+        ax.plot([leaf for leaf, _ in pts], [s for _, s in pts], marker="o", ms=3, label=m)
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("max leaf size")
+    ax.set_ylabel("speedup over no tree (leaf size 0)")
+    ax.set_title("kdrt-bench: speedup of the kd-tree")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    save(fig, prefix, "speedup")
+
+    # 3. Speed against error: MRays/s against mismatches per reference ray, kdrt and Embree.
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for label, subset, marker in (("kdrt (best leaf size per mesh)", kd, "o"), ("Embree 3", peer, "s")):
+        xs, ys = [], []
+        for m in meshes:
+            mine = [r for r in subset if r["Mesh"] == m and r.get("MRaysPerSec")]
+            if not mine:
+                continue
+            best = max(mine, key=lambda r: float(r["MRaysPerSec"]))
+            ref = int(best.get("ReferenceRays") or 0)
+            xs.append(int(best.get("Mismatches") or 0) / ref if ref else 0.0)
+            ys.append(float(best["MRaysPerSec"]))
+        if xs:
+            ax.scatter(xs, ys, marker=marker, label=label)
+    ax.set_xscale("symlog", linthresh=1e-5)
+    ax.set_xlabel("mismatches per reference ray (0 = agrees with double-precision brute force)")
+    ax.set_ylabel("MRays/s (one thread)")
+    ax.set_title("kdrt-bench: speed against error")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    save(fig, prefix, "speed-vs-error")
+
+
+if __name__ == "__main__":
+    main()
