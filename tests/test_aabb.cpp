@@ -12,6 +12,8 @@
 
 namespace {
 
+using kt::ray_of;
+
 const float kInf = std::numeric_limits<float>::infinity();
 const float kNaN = std::numeric_limits<float>::quiet_NaN();
 
@@ -20,14 +22,6 @@ kdrt_aabb box_of(float x0, float y0, float z0, float x1, float y1, float z1) {
     b.min[0] = x0, b.min[1] = y0, b.min[2] = z0;
     b.max[0] = x1, b.max[1] = y1, b.max[2] = z1;
     return b;
-}
-
-kdrt_ray ray_of(float ox, float oy, float oz, float dx, float dy, float dz, float tmin = 0.0f, float tmax = kInf) {
-    kdrt_ray r;
-    r.org[0] = ox, r.org[1] = oy, r.org[2] = oz;
-    r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
-    r.tmin = tmin, r.tmax = tmax;
-    return r;
 }
 
 bool same_box(const kdrt_aabb &a, const kdrt_aabb &b) {

@@ -19,28 +19,17 @@ static_assert(sizeof(kdrt_builder) == sizeof(int), "the builder test stores an i
 
 namespace {
 
+using kt::kLeafSizes;
+using kt::ray_of;
+using kt::same_hit;
+
 const float kInf = std::numeric_limits<float>::infinity();
 const float kNaN = std::numeric_limits<float>::quiet_NaN();
-const uint32_t kLeafSizes[] = {0, 1, 2, 4, 8, 16, 64};
 
 // A pointer that is not NULL and not a tree: a failed build must overwrite it with NULL.
 kdrt_tree *poison() {
     static int dummy;
     return reinterpret_cast<kdrt_tree *>(&dummy);
-}
-
-kdrt_ray ray_of(float ox, float oy, float oz, float dx, float dy, float dz, float tmin = 0.0f, float tmax = kInf) {
-    kdrt_ray r;
-    r.org[0] = ox, r.org[1] = oy, r.org[2] = oz;
-    r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
-    r.tmin = tmin, r.tmax = tmax;
-    return r;
-}
-
-bool same_hit(const kdrt_hit &a, const kdrt_hit &b) {
-    if (a.triangle != b.triangle) return false;
-    if (a.triangle == KDRT_INVALID_ID) return true;
-    return a.t == b.t && a.u == b.u && a.v == b.v;
 }
 
 // Builds, returning the result; *tree gets the tree (or NULL).

@@ -24,22 +24,11 @@
 
 namespace {
 
+using kt::kLeafSizes;
+using kt::ray_of;
+using kt::same_hit;
+
 const float kInf = std::numeric_limits<float>::infinity();
-const uint32_t kLeafSizes[] = {0, 1, 2, 4, 8, 16, 64};
-
-kdrt_ray ray_of(float ox, float oy, float oz, float dx, float dy, float dz, float tmin = 0.0f, float tmax = kInf) {
-    kdrt_ray r;
-    r.org[0] = ox, r.org[1] = oy, r.org[2] = oz;
-    r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
-    r.tmin = tmin, r.tmax = tmax;
-    return r;
-}
-
-bool same_hit(const kdrt_hit &a, const kdrt_hit &b) {
-    if (a.triangle != b.triangle) return false;
-    if (a.triangle == KDRT_INVALID_ID) return true;
-    return a.t == b.t && a.u == b.u && a.v == b.v;
-}
 
 std::string describe(const kdrt_ray &r) {
     std::ostringstream s;

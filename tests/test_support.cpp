@@ -144,6 +144,20 @@ std::vector<std::string> shared_mesh_files() {
     return files;
 }
 
+kdrt_ray ray_of(float ox, float oy, float oz, float dx, float dy, float dz, float tmin, float tmax) {
+    kdrt_ray r;
+    r.org[0] = ox, r.org[1] = oy, r.org[2] = oz;
+    r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
+    r.tmin = tmin, r.tmax = tmax;
+    return r;
+}
+
+bool same_hit(const kdrt_hit &a, const kdrt_hit &b) {
+    if (a.triangle != b.triangle) return false;
+    if (a.triangle == KDRT_INVALID_ID) return true;
+    return a.t == b.t && a.u == b.u && a.v == b.v;
+}
+
 std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t seed) {
     Rng rng(seed);
     double c[3], ext[3], diag = 0;

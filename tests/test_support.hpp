@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,12 @@ Mesh as_soup(const Mesh &indexed);                                     // same t
 std::string shared_mesh_dir();
 // Every mesh file under shared_mesh_dir()'s seed/ and common/, sorted; empty when absent.
 std::vector<std::string> shared_mesh_files();
+
+// A ray from (ox, oy, oz) along (dx, dy, dz) over [tmin, tmax].
+kdrt_ray ray_of(float ox, float oy, float oz, float dx, float dy, float dz, float tmin = 0.0f,
+                float tmax = std::numeric_limits<float>::infinity());
+// Same hit or miss with equal t, u, v (-0 equals +0); on a miss only the triangle is specified.
+bool same_hit(const kdrt_hit &a, const kdrt_hit &b);
 
 // Random rays for a scene box: half start inside the box with a uniform direction, half start
 // outside it and aim at a uniform point inside; some carry a finite tmin or tmax.
