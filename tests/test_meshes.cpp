@@ -25,8 +25,8 @@ TEST_CASE("shared meshes agree with the reference", "[meshes]") {
             REQUIRE(loaded);
             mesh.name = name;
             // Leaf size 0 tests every triangle against every ray, about 25 ns a test here: on the
-            // large meshes it traces a leading part of the rays (at least 2,000), so that the
-            // suite keeps to CI's time; every tree still traces all of them.
+            // large meshes its kdrt_occluded() pass takes a leading part of the rays (at least
+            // 2,000), so that the suite keeps to CI's time; kdrt_intersect() takes all of them.
             const double budget = 4e8 * double(rays) / 100000.0;  // triangle tests per mesh
             const size_t brute = std::min(rays, std::max<size_t>(2000, size_t(budget / mesh.triangle_count())));
             kt::check_scene(mesh, rays, 1000 + uint32_t(i), brute);

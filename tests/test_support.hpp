@@ -68,10 +68,10 @@ constexpr uint32_t kLeafSizes[] = {0, 1, 2, 4, 8, 16, 64};
 //  (a) kdrt_intersect() agrees with the oracle on every ray, and few rays are ambiguous;
 //  (b) it returns bit for bit what leaf size 0 returns (the header's tie-breaking promise);
 //  (c) kdrt_occluded() reports a hit exactly when kdrt_intersect() finds one.
-// Leaf size 0 (every triangle for every ray) traces only the first brute_force_rays rays; (b)
-// then holds the trees to it there and to the first tree elsewhere.
+// Leaf size 0 (every triangle for every ray) runs kdrt_occluded() on only the first
+// brute_force_occluded_rays rays for (c); kdrt_intersect() always takes every ray.
 // Fails with CHECKs naming the leaf size and the first bad ray; WARNs a line of counts per leaf
 // size so the log shows exact / ambiguous / wrong for every scene.
-void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute_force_rays = SIZE_MAX);
+void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute_force_occluded_rays = SIZE_MAX);
 
 }  // namespace kt
