@@ -134,14 +134,14 @@ Reference Oracle::trace(const kdrt_ray &ray) const {
 }
 
 double Oracle::possible_t(const kdrt_ray &ray, uint32_t triangle) const {
-    if (size_t(triangle) * 9 >= tri_.size()) return -1;
+    if (size_t(triangle) * 9 >= tri_.size()) return std::nan("");
     const double o[3] = {ray.org[0], ray.org[1], ray.org[2]}, d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
     double t, det, b1, b2;
-    if (!plane_hit(&tri_[size_t(triangle) * 9], o, d, -INFINITY, t, det, b1, b2)) return -1;
+    if (!plane_hit(&tri_[size_t(triangle) * 9], o, d, -INFINITY, t, det, b1, b2)) return std::nan("");
     double margin = edge_margin(&tri_[size_t(triangle) * 9], o, d, det);
-    if (b1 < -margin || b2 < -margin || 1 - b1 - b2 < -margin) return -1;
+    if (b1 < -margin || b2 < -margin || 1 - b1 - b2 < -margin) return std::nan("");
     double tol = t_tolerance(ray, t);
-    if (t < std::max(0.0, double(ray.tmin)) - tol || t > double(ray.tmax) + tol) return -1;
+    if (t < std::max(0.0, double(ray.tmin)) - tol || t > double(ray.tmax) + tol) return std::nan("");
     return t;
 }
 
@@ -154,7 +154,7 @@ void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, 
         else ++tally.exact;  // near-edge misses are fine either way; none is surely hit
     } else {
         double pt = oracle.possible_t(ray, h.triangle);
-        if (pt < 0) why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", which the ray misses";
+        if (std::isnan(pt)) why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", which the ray misses";
         else if (std::fabs(h.t - pt) > oracle.t_tolerance(ray, pt, h.triangle)) why << "kdrt t=" << h.t << " on triangle " << h.triangle << ", reference t=" << pt;
         else if (ref.sure_hit && h.t > ref.sure_t + oracle.t_tolerance(ray, ref.sure_t, ref.sure_triangle))
             why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", but triangle " << ref.sure_triangle << " is nearer at t=" << ref.sure_t;

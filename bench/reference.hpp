@@ -35,7 +35,8 @@ public:
 
     explicit Oracle(const Mesh &mesh);
     Reference trace(const kdrt_ray &ray) const;
-    // t at which the ray meets the triangle's plane inside the barycentric margin, or -1.
+    // t at which the ray meets the triangle's plane inside the barycentric margin and the range
+    // (both widened by their tolerances, so t may be a hair below 0), or NaN.
     double possible_t(const kdrt_ray &ray, uint32_t triangle) const;
     // Tolerance on t for a well-conditioned hit, and for a hit on a given triangle.
     double t_tolerance(const kdrt_ray &ray, double t) const;

@@ -7,7 +7,8 @@
          #include "kdrt.h"
 
      Everywhere else include it plainly. Define KDRT_STATIC as well to make every function static
-     (private to that one file). The header needs only the C standard library (no libm).
+     (private to that one file). The header needs only the C standard library (with libm: C
+     programs on Unix link -lm).
 
          kdrt_triangles mesh = {0};
          mesh.positions = vertices;          // float x, y, z per vertex
@@ -59,8 +60,18 @@
      kdrt_intersect() returns the nearest hit in that range. Equal distances are broken towards the
      lower triangle index, so the result does not depend on the tree's shape: a tree of any leaf
      size returns exactly what max_leaf_size = 0 (test every triangle) returns for the same ray.
-     Triangles are intersected with the Moeller-Trumbore test in single precision, with no epsilon:
-     a ray meeting a triangle exactly on its edge counts as a hit. Zero-area triangles (coincident
+     Triangles are intersected in single precision with no epsilon; a ray meeting a triangle
+     exactly on its edge counts as a hit. options.intersector picks the test for a tree:
+       KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
+         surface made of triangles sharing edges and vertices (by index or by equal coordinates)
+         hits at least one of them, even exactly through an edge or a vertex: no ray slips
+         through a closed mesh. Requires the compiler not to fuse a*b - c*d into FMAs (GCC and
+         Clang on x86-64 do not by default; elsewhere build with -ffp-contract=off).
+       KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
+         an edge or vertex can pass between the triangles sharing it.
+     Both agree with a double-precision reference on the triangle and, to a few ulps, on t
+     everywhere else. There is no double-precision query: the vertices are floats already, and the
+     tests and kdrt-bench --accuracy measure no mismatch left that doubles would remove. Zero-area triangles (coincident
      or collinear corners: the edges' cross product, evaluated in double precision, is exactly
      zero) are left out of the tree at build time and never hit; they are valid input, counted in
      kdrt_build_report.degenerate_triangles. Hits are accepted wherever they are found and the traversal stops only once
@@ -69,6 +80,9 @@
      bound on their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit
      both sides, so rounding cannot make the traversal skip a node the ray passes through.
      Barycentrics: the hit point is (1 - u - v) * p0 + u * p1 + v * p2.
+     Secondary rays: start them with kdrt_spawn_ray(), which offsets the hit point along the
+     geometric normal by a distance relative to its magnitude, so a reflected, refracted or shadow
+     ray does not hit the surface it leaves, however far from the origin the scene lies.
 
    THE TREE
      KDRT_BUILDER_MEDIAN is the original course ray tracer's kd-tree, corrected: a node holding at
@@ -170,6 +184,14 @@ typedef enum kdrt_builder {
     KDRT_BUILDER_MEDIAN = 1   /* the original's median-centroid kd-tree (see THE TREE) */
 } kdrt_builder;
 
+typedef enum kdrt_intersector {
+    KDRT_INTERSECTOR_DEFAULT = 0,    /* KDRT_INTERSECTOR_WATERTIGHT */
+    KDRT_INTERSECTOR_WATERTIGHT = 1, /* Woop, Benthin & Wald 2013: no ray slips between triangles
+                                        that share an edge or a vertex (see NUMERICAL GUARANTEES) */
+    KDRT_INTERSECTOR_FAST = 2        /* Moeller & Trumbore 1997: rays through shared edges and
+                                        vertices may pass between the triangles */
+} kdrt_intersector;
+
 typedef enum kdrt_build_flags {
     /* Leave out triangles with a NaN or infinite coordinate or an index out of range, and count
        them in kdrt_build_report.skipped_triangles, instead of failing the build. */
@@ -180,6 +202,7 @@ typedef enum kdrt_build_flags {
    max_leaf_size, where 0 keeps the original's meaning: no tree. */
 typedef struct kdrt_build_options {
     kdrt_builder builder;
+    kdrt_intersector intersector; /* the ray/triangle test every query on this tree uses */
     uint32_t max_leaf_size;   /* a node with at most this many triangles is a leaf; 0: no tree */
     uint32_t max_depth;       /* 0: 8 + 1.3 log2(triangles) (pbrt); clamped to KDRT_MAX_DEPTH */
     uint32_t flags;           /* kdrt_build_flags */
@@ -237,6 +260,26 @@ KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
 
+/* Where a hit lies: the point from its barycentrics (more accurate than org + t * dir, whose
+   error grows with t) and the unit geometric normal, (p1 - p0) x (p2 - p0) normalised, so it faces
+   the side from which the corners run counter-clockwise. Either output may be NULL. Returns 0 and
+   writes nothing when hit is not a hit on this tree's triangles. */
+KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
+                              float normal[3]);
+/* Moves a surface point off its surface, along the geometric normal towards the side dir points
+   to, by a distance that scales with the point's magnitude (Waechter & Binder, "A Fast and Robust
+   Method for Avoiding Self-Intersection", Ray Tracing Gems 2019): 256 ulps of each coordinate, or
+   2^-16 near the origin. A ray from the result in direction dir cannot hit the surface it starts
+   on, near the origin or far from it; no fixed epsilon involved. normal need not be unit length. */
+KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3], const float dir[3],
+                                     float out[3]);
+/* A secondary ray leaving a hit in direction dir (reflection, refraction, shadow or bounce):
+   origin = the hit's surface point offset by kdrt_offset_ray_origin(), tmin = 0,
+   tmax = infinity. Returns 0 (and a ray that misses everything) when hit is not a hit of tree.
+   For a shadow ray to a point q, set dir = q - out->org afterwards and keep tmax below 1. */
+KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
+                            kdrt_ray *out);
+
 #ifdef __cplusplus
 }
 #endif
@@ -246,7 +289,7 @@ KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
 #if defined(KDRT_IMPLEMENTATION) && !defined(KDRT__IMPLEMENTED)
 #define KDRT__IMPLEMENTED
 
-#include <math.h>   /* INFINITY only: no libm functions are called */
+#include <math.h>   /* INFINITY, sqrt */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
 #include <string.h>
 
@@ -283,6 +326,7 @@ typedef char kdrt__node_is_8_bytes[sizeof(kdrt__node) == 8 ? 1 : -1];
 
 struct kdrt_tree {
     kdrt_triangles mesh; /* borrowed; position_stride resolved (never 0) */
+    int watertight;      /* options.intersector: 1 watertight, 0 fast (Moeller-Trumbore) */
     kdrt_allocator allocator;
     kdrt_aabb bounds;
     kdrt__node *nodes;
@@ -294,6 +338,7 @@ struct kdrt_tree {
 
 /* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
 static int kdrt__finite(float x) { return x - x == 0.0f; }
+static float kdrt__abs(float x) { return x < 0.0f ? -x : x; }
 
 static void *kdrt__alloc(const kdrt_allocator *a, size_t size)
 {
@@ -479,6 +524,10 @@ KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aab
 typedef struct kdrt__ray_setup {
     float org[3], dir[3], inv_dir[3];
     float tmin, tmax;
+    /* Watertight test: kz is the axis of the largest |dir| component, kx and ky the others
+       (swapped when dir[kz] < 0 to keep the winding); the shear maps dir onto +z. */
+    int kx, ky, kz;
+    float shear_x, shear_y, shear_z;
 } kdrt__ray_setup;
 
 /* 0 for rays that can hit nothing: NaN or infinite parts, zero direction, empty range. */
@@ -495,7 +544,18 @@ static int kdrt__setup_ray(const kdrt_ray *ray, kdrt__ray_setup *s)
     if (ray->tmin != ray->tmin) return 0; /* NaN */
     s->tmin = ray->tmin > 0.0f ? ray->tmin : 0.0f;
     s->tmax = ray->tmax;
-    return nonzero && s->tmin <= s->tmax; /* also false when tmax is NaN */
+    if (!nonzero || !(s->tmin <= s->tmax)) return 0; /* also when tmax is NaN */
+
+    s->kz = 0;
+    for (a = 1; a < 3; ++a)
+        if (kdrt__abs(s->dir[a]) > kdrt__abs(s->dir[s->kz])) s->kz = a;
+    s->kx = (s->kz + 1) % 3;
+    s->ky = (s->kx + 1) % 3;
+    if (s->dir[s->kz] < 0.0f) { int k = s->kx; s->kx = s->ky; s->ky = k; }
+    s->shear_x = s->dir[s->kx] / s->dir[s->kz];
+    s->shear_y = s->dir[s->ky] / s->dir[s->kz];
+    s->shear_z = 1.0f / s->dir[s->kz];
+    return 1;
 }
 
 /* Slab test. An axis the ray is parallel to (its inverse direction is infinite) is decided by
@@ -725,6 +785,9 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     r = kdrt__check_view(mesh, &m);
     if (r != KDRT_SUCCESS) return r;
     if (opt.builder != KDRT_BUILDER_DEFAULT && opt.builder != KDRT_BUILDER_MEDIAN) return KDRT_ERROR_INVALID_OPTION;
+    if (opt.intersector != KDRT_INTERSECTOR_DEFAULT && opt.intersector != KDRT_INTERSECTOR_WATERTIGHT &&
+        opt.intersector != KDRT_INTERSECTOR_FAST)
+        return KDRT_ERROR_INVALID_OPTION;
     if (opt.flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
     if ((opt.allocator.alloc == NULL) != (opt.allocator.free == NULL)) return KDRT_ERROR_NULL_ARGUMENT;
 
@@ -738,6 +801,7 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
     memset(tree, 0, sizeof *tree);
     tree->mesh = m;
+    tree->watertight = opt.intersector != KDRT_INTERSECTOR_FAST;
     tree->allocator = opt.allocator;
     tree->bounds = kdrt_aabb_empty();
 
@@ -855,9 +919,53 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
 
 /* ---- queries ---- */
 
-/* Moeller-Trumbore, no epsilon. Accepts t in [tmin, *best_t], nearer first, equal t going to
-   the lower triangle index so that the answer does not depend on the order of the tests. */
-static int kdrt__intersect_triangle(const kdrt_triangles *m, uint32_t tri, const kdrt__ray_setup *s,
+/* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
+   that the answer does not depend on the order of the tests. */
+static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v, const kdrt__ray_setup *s)
+{
+    if (!(t >= s->tmin && t <= best->t)) return 0;
+    if (t == best->t && tri > best->triangle) return 0;
+    best->t = t, best->u = u, best->v = v, best->triangle = tri;
+    return 1;
+}
+
+/* Watertight test (Woop, Benthin & Wald, JCGT 2013). The corners are moved to the ray's origin
+   and sheared so the ray runs along +z; the 2D edge functions then depend only on the two corners
+   of each edge, so triangles sharing that edge compute it with the same value and opposite sign,
+   and a ray through the edge or a shared vertex hits at least one of them. Edge functions that
+   come out exactly 0 are redone in double, where the products are exact, so their sign is too. */
+static int kdrt__intersect_watertight(const kdrt_triangles *m, uint32_t tri, const kdrt__ray_setup *s,
+                                      kdrt_hit *best)
+{
+    float p[3][3], x[3], y[3], z[3], e0, e1, e2, det, inv_det;
+    const int kx = s->kx, ky = s->ky, kz = s->kz;
+    int k;
+    kdrt__load_triangle(m, tri, p);
+    for (k = 0; k < 3; ++k) {
+        float dx = p[k][kx] - s->org[kx], dy = p[k][ky] - s->org[ky], dz = p[k][kz] - s->org[kz];
+        x[k] = dx - s->shear_x * dz;
+        y[k] = dy - s->shear_y * dz;
+        z[k] = s->shear_z * dz;
+    }
+    e0 = x[2] * y[1] - y[2] * x[1]; /* edge 1-2: weight of corner 0 */
+    e1 = x[0] * y[2] - y[0] * x[2]; /* edge 2-0: weight of corner 1 */
+    e2 = x[1] * y[0] - y[1] * x[0]; /* edge 0-1: weight of corner 2 */
+    if (e0 == 0.0f || e1 == 0.0f || e2 == 0.0f) {
+        e0 = (float)((double)x[2] * y[1] - (double)y[2] * x[1]);
+        e1 = (float)((double)x[0] * y[2] - (double)y[0] * x[2]);
+        e2 = (float)((double)x[1] * y[0] - (double)y[1] * x[0]);
+    }
+    if ((e0 < 0.0f || e1 < 0.0f || e2 < 0.0f) && (e0 > 0.0f || e1 > 0.0f || e2 > 0.0f)) return 0;
+    det = e0 + e1 + e2;
+    if (det == 0.0f) return 0; /* the ray lies in the triangle's plane */
+    inv_det = 1.0f / det;
+    return kdrt__accept(best, tri, (e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det, e1 * inv_det,
+                        e2 * inv_det, s);
+}
+
+/* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an
+   edge are computed differently, so a ray through the edge can miss both. */
+static int kdrt__intersect_fast(const kdrt_triangles *m, uint32_t tri, const kdrt__ray_setup *s,
                                     kdrt_hit *best)
 {
     float p[3][3], e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
@@ -878,10 +986,7 @@ static int kdrt__intersect_triangle(const kdrt_triangles *m, uint32_t tri, const
     v = (s->dir[0] * qv[0] + s->dir[1] * qv[1] + s->dir[2] * qv[2]) * inv_det;
     if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
-    if (!(t >= s->tmin && t <= best->t)) return 0;
-    if (t == best->t && tri > best->triangle) return 0;
-    best->t = t, best->u = u, best->v = v, best->triangle = tri;
-    return 1;
+    return kdrt__accept(best, tri, t, u, v, s);
 }
 
 typedef struct kdrt__todo {
@@ -938,8 +1043,11 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
         {
             const uint32_t *refs = tree->refs + n->u.first_ref;
             uint32_t i, count = n->bits >> 2;
-            for (i = 0; i < count; ++i)
-                if (kdrt__intersect_triangle(&tree->mesh, refs[i], &s, best) && any_hit) return 1;
+            for (i = 0; i < count; ++i) {
+                int found = tree->watertight ? kdrt__intersect_watertight(&tree->mesh, refs[i], &s, best)
+                                             : kdrt__intersect_fast(&tree->mesh, refs[i], &s, best);
+                if (found && any_hit) return 1;
+            }
         }
         /* Next node that starts no later than the best hit: any triangle in a node starting
            beyond it is farther away. */
@@ -965,6 +1073,74 @@ KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
 {
     kdrt_hit hit;
     return tree && ray && kdrt__traverse(tree, ray, &hit, 1);
+}
+
+/* ---- secondary rays ---- */
+
+KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
+                              float normal[3])
+{
+    float p[3][3];
+    double e1[3], e2[3], n[3], length;
+    int a;
+    if (!tree || !hit || hit->triangle >= tree->mesh.triangle_count) return 0;
+    kdrt__load_triangle(&tree->mesh, hit->triangle, p);
+    for (a = 0; a < 3; ++a) {
+        e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
+        /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp */
+        if (point) point[a] = (float)(p[0][a] + hit->u * e1[a] + hit->v * e2[a]);
+    }
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (normal)
+        for (a = 0; a < 3; ++a) normal[a] = length > 0.0 ? (float)(n[a] / length) : 0.0f;
+    return 1;
+}
+
+KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3], const float dir[3],
+                                     float out[3])
+{
+    /* Waechter & Binder's constants: below 1/32 a fixed 2^-16 step, above it 256 ulps. */
+    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    float n[3], largest = 0.0f;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        if (!kdrt__finite(normal[a])) largest = -1.0f; /* poisoned: leave the point alone */
+        if (largest >= 0.0f && kdrt__abs(normal[a]) > largest) largest = kdrt__abs(normal[a]);
+    }
+    /* Scale so the largest component is 1 (no sqrt needed), and face the side dir leaves on. */
+    if (!(largest > 0.0f)) {
+        for (a = 0; a < 3; ++a) out[a] = point[a];
+        return;
+    }
+    if (normal[0] * dir[0] + normal[1] * dir[1] + normal[2] * dir[2] < 0.0f) largest = -largest;
+    for (a = 0; a < 3; ++a) n[a] = normal[a] / largest;
+    for (a = 0; a < 3; ++a) {
+        int32_t bits, step = (int32_t)(int_scale * n[a]);
+        float moved;
+        memcpy(&bits, &point[a], sizeof bits);
+        /* Stepping the integer bits moves away from 0 for positive steps of positive values. */
+        bits += point[a] < 0.0f ? -step : step;
+        memcpy(&moved, &bits, sizeof moved);
+        out[a] = kdrt__abs(point[a]) < origin ? point[a] + float_scale * n[a] : moved;
+    }
+}
+
+KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
+                            kdrt_ray *out)
+{
+    float point[3], normal[3];
+    int a;
+    if (!out) return 0;
+    memset(out, 0, sizeof *out);
+    if (!dir || !kdrt_hit_surface(tree, hit, point, normal)) return 0; /* zero dir: misses */
+    kdrt_offset_ray_origin(point, normal, dir, out->org);
+    for (a = 0; a < 3; ++a) out->dir[a] = dir[a];
+    out->tmin = 0.0f;
+    out->tmax = INFINITY;
+    return 1;
 }
 
 #ifdef __cplusplus
