@@ -93,8 +93,9 @@ def main():
 
     # 3. Speed against error: MRays/s against mismatches per reference ray, kdrt and Embree.
     fig, ax = plt.subplots(figsize=(8, 5))
+    worst = 0.0
     for label, subset, marker in (("kdrt (best leaf size per mesh)", kd, "o"), ("Embree 3", peer, "s")):
-        xs, ys = [], []
+        xs, ys, names = [], [], []
         for m in meshes:
             mine = [r for r in subset if r["Mesh"] == m and r.get("MRaysPerSec")]
             if not mine:
@@ -103,9 +104,16 @@ def main():
             ref = int(best.get("ReferenceRays") or 0)
             xs.append(int(best.get("Mismatches") or 0) / ref if ref else 0.0)
             ys.append(float(best["MRaysPerSec"]))
+            names.append(m)
         if xs:
             ax.scatter(xs, ys, marker=marker, label=label)
+            for x, y, name in zip(xs, ys, names):
+                ax.annotate(name, (x, y), textcoords="offset points", xytext=(6, -3), fontsize=7)
+            worst = max(worst, max(xs))
+    # Error rates are 0 or tiny fractions: linear near 0, logarithmic above 1e-5.
     ax.set_xscale("symlog", linthresh=1e-5)
+    ax.set_xlim(left=-2e-6, right=max(1e-2, 10 * worst))
+    ax.set_yscale("log")
     ax.set_xlabel("mismatches per reference ray (0 = agrees with double-precision brute force)")
     ax.set_ylabel("MRays/s (one thread)")
     ax.set_title("kdrt-bench: speed against error")
