@@ -93,6 +93,14 @@
      node is a leaf. Triangles are sorted once per axis at the root and the children's lists are
      filtered from their parent's in order, so a level costs O(n). Depth is bounded by
      options.max_depth (at most KDRT_MAX_DEPTH), which bounds the traversal's fixed stack.
+     KDRT_BUILDER_SAH chooses each split by the surface area heuristic (Wald & Havran 2006): the
+     start, end and planar events of the triangles' boxes are sorted once per axis, each node
+     sweeps its events for the cheapest plane and hands its children their events filtered in
+     order; a triangle cut by the plane is clipped to each child's box first (perfect splits),
+     so it goes only where some of it lies. A node becomes a leaf when it holds at most
+     max_leaf_size triangles, at max_depth, or when no split is cheaper than testing all its
+     triangles (the costs are options). It builds slower than the median and traces several
+     times faster.
      max_leaf_size = 0 means no tree: every query tests every triangle (the baseline of the
      benchmark), through the same API.
 
@@ -181,7 +189,8 @@ typedef struct kdrt_allocator {
 
 typedef enum kdrt_builder {
     KDRT_BUILDER_DEFAULT = 0, /* the best builder available: currently the median builder */
-    KDRT_BUILDER_MEDIAN = 1   /* the original's median-centroid kd-tree (see THE TREE) */
+    KDRT_BUILDER_MEDIAN = 1,  /* the original's median-centroid kd-tree (see THE TREE) */
+    KDRT_BUILDER_SAH = 2      /* surface area heuristic with perfect splits (see THE TREE) */
 } kdrt_builder;
 
 typedef enum kdrt_intersector {
@@ -207,9 +216,21 @@ typedef struct kdrt_build_options {
     uint32_t max_depth;       /* 0: 8 + 1.3 log2(triangles) (pbrt); clamped to KDRT_MAX_DEPTH */
     uint32_t flags;           /* kdrt_build_flags */
     kdrt_allocator allocator; /* all zero: KDRT_MALLOC / KDRT_FREE */
+    /* KDRT_BUILDER_SAH's cost model (0: default): a split costs traversal_cost plus
+       intersection_cost times the expected triangle tests of the children, scaled by
+       1 - empty_bonus when one side is empty; a node is a leaf unless a split is cheaper than
+       intersection_cost times its triangle count. Only the ratio of the two costs matters. */
+    float sah_traversal_cost;    /* default KDRT_DEFAULT_SAH_TRAVERSAL_COST */
+    float sah_intersection_cost; /* default KDRT_DEFAULT_SAH_INTERSECTION_COST */
+    float sah_empty_bonus;       /* in [0, 1); default KDRT_DEFAULT_SAH_EMPTY_BONUS */
 } kdrt_build_options;
 
 #define KDRT_DEFAULT_MAX_LEAF_SIZE 4
+/* Wald & Havran 2006 (K_T = 15, K_I = 20, empty cut-off factor 0.8 = 1 - 0.2; Mitsuba alike);
+   pbrt-v3 uses 1, 80 and 0.5. */
+#define KDRT_DEFAULT_SAH_TRAVERSAL_COST 15.0f
+#define KDRT_DEFAULT_SAH_INTERSECTION_COST 20.0f
+#define KDRT_DEFAULT_SAH_EMPTY_BONUS 0.2f
 
 /* What a build found in the input; filled on success and on failure. */
 typedef struct kdrt_build_report {
@@ -339,6 +360,18 @@ struct kdrt_tree {
 /* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
 static int kdrt__finite(float x) { return x - x == 0.0f; }
 static float kdrt__abs(float x) { return x < 0.0f ? -x : x; }
+
+/* The next float towards +infinity / -infinity (finite x). */
+static float kdrt__next_up(float x)
+{
+    uint32_t bits;
+    if (x == 0.0f) x = 0.0f; /* -0 steps like +0 */
+    memcpy(&bits, &x, sizeof bits);
+    bits = x >= 0.0f ? bits + 1u : bits - 1u;
+    memcpy(&x, &bits, sizeof bits);
+    return x;
+}
+static float kdrt__next_down(float x) { return -kdrt__next_up(-x); }
 
 static void *kdrt__alloc(const kdrt_allocator *a, size_t size)
 {
@@ -615,6 +648,8 @@ typedef struct kdrt__builder {
     const kdrt_allocator *allocator;
     const float *lo, *hi, *centroid; /* per triangle (by caller's index), 3 floats each */
     unsigned char *side;             /* per triangle: KDRT__SIDE_* of the split being made */
+    const kdrt_triangles *mesh;      /* the SAH builder clips triangles to node boxes */
+    float sah_trav, sah_isect, sah_empty_bonus;
     kdrt__node *nodes;
     uint32_t node_count, node_capacity;
     uint32_t *refs;
@@ -742,6 +777,277 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     return r;
 }
 
+/* ---- SAH builder (Wald & Havran 2006: events sorted once, perfect splits) ---- */
+
+/* At equal positions the sweep takes ends, then planars, then starts (Wald & Havran, sec. 4.2). */
+#define KDRT__EVENT_END 0u
+#define KDRT__EVENT_PLANAR 1u
+#define KDRT__EVENT_START 2u
+
+typedef struct kdrt__event {
+    float pos;
+    uint32_t tri;
+    uint32_t type;
+} kdrt__event;
+
+static int kdrt__event_less(const void *pa, const void *pb)
+{
+    const kdrt__event *a = (const kdrt__event *)pa, *b = (const kdrt__event *)pb;
+    if (a->pos != b->pos) return a->pos < b->pos ? -1 : 1;
+    if (a->type != b->type) return a->type < b->type ? -1 : 1;
+    return a->tri < b->tri ? -1 : (a->tri > b->tri);
+}
+
+/* One node's events: per axis a sorted list; every triangle of the node has a planar event or a
+   start and an end event on each axis. */
+typedef struct kdrt__events {
+    kdrt__event *e[3];
+    uint32_t count[3];
+    uint32_t triangles;
+} kdrt__events;
+
+static void kdrt__events_free(const kdrt_allocator *a, kdrt__events *ev)
+{
+    int k;
+    for (k = 0; k < 3; ++k) kdrt__free(a, ev->e[k]), ev->e[k] = NULL;
+}
+
+/* Appends the events of a triangle whose box in the node is [lo, hi]. */
+static void kdrt__push_events(kdrt__events *ev, uint32_t tri, const float lo[3], const float hi[3])
+{
+    int k;
+    for (k = 0; k < 3; ++k) {
+        kdrt__event *e = ev->e[k] + ev->count[k];
+        if (lo[k] == hi[k]) {
+            e[0].pos = lo[k], e[0].tri = tri, e[0].type = KDRT__EVENT_PLANAR;
+            ev->count[k] += 1;
+        } else {
+            e[0].pos = lo[k], e[0].tri = tri, e[0].type = KDRT__EVENT_START;
+            e[1].pos = hi[k], e[1].tri = tri, e[1].type = KDRT__EVENT_END;
+            ev->count[k] += 2;
+        }
+    }
+    ev->triangles += 1;
+}
+
+/* Box of the part of triangle tri inside box [blo, bhi] (Sutherland-Hodgman in double, rounded
+   outwards to float and kept within the box); 0 when nothing of it is inside. */
+static int kdrt__clip_triangle(const kdrt_triangles *m, uint32_t tri, const float blo[3],
+                               const float bhi[3], float lo[3], float hi[3])
+{
+    double poly[2][9][3];
+    float p[3][3];
+    int n = 3, cur = 0, k, side, i, j, a;
+    kdrt__load_triangle(m, tri, p);
+    for (i = 0; i < 3; ++i)
+        for (a = 0; a < 3; ++a) poly[0][i][a] = p[i][a];
+    for (k = 0; k < 3 && n > 0; ++k)
+        for (side = 0; side < 2 && n > 0; ++side) {
+            /* Keep the half space x_k >= blo (side 0) or x_k <= bhi (side 1), boundary included. */
+            double plane = side ? bhi[k] : blo[k], sign = side ? -1.0 : 1.0;
+            int out = 0;
+            for (i = 0; i < n; ++i) {
+                const double *s = poly[cur][i], *e = poly[cur][(i + 1) % n];
+                double ds = sign * (s[k] - plane), de = sign * (e[k] - plane);
+                if (ds >= 0.0) memcpy(poly[!cur][out++], s, sizeof poly[0][0]);
+                if ((ds < 0.0 && de > 0.0) || (ds > 0.0 && de < 0.0)) {
+                    double f = ds / (ds - de);
+                    for (a = 0; a < 3; ++a) poly[!cur][out][a] = s[a] + f * (e[a] - s[a]);
+                    poly[!cur][out][k] = plane; /* exactly on the plane */
+                    ++out;
+                }
+            }
+            n = out;
+            cur = !cur;
+        }
+    if (n == 0) return 0;
+    for (a = 0; a < 3; ++a) {
+        double l = poly[cur][0][a], h = l;
+        for (j = 1; j < n; ++j) {
+            if (poly[cur][j][a] < l) l = poly[cur][j][a];
+            if (poly[cur][j][a] > h) h = poly[cur][j][a];
+        }
+        lo[a] = (float)l, hi[a] = (float)h;
+        if ((double)lo[a] > l) lo[a] = kdrt__next_down(lo[a]); /* round outwards */
+        if ((double)hi[a] < h) hi[a] = kdrt__next_up(hi[a]);
+        if (lo[a] < blo[a]) lo[a] = blo[a];
+        if (hi[a] > bhi[a]) hi[a] = bhi[a];
+        if (lo[a] > hi[a]) return 0;
+    }
+    return 1;
+}
+
+static float kdrt__half_area(const float lo[3], const float hi[3])
+{
+    float d0 = hi[0] - lo[0], d1 = hi[1] - lo[1], d2 = hi[2] - lo[2];
+    return d0 * d1 + d1 * d2 + d2 * d0;
+}
+
+typedef struct kdrt__plane {
+    int axis;
+    float pos;
+    int planar_below; /* triangles lying in the plane go below (1) or above (0) */
+    float cost;
+} kdrt__plane;
+
+/* The sweep: the cheapest plane strictly inside the node's box, by the surface area heuristic. */
+static kdrt__plane kdrt__best_plane(const kdrt__builder *b, const kdrt__events *ev, const float lo[3],
+                                    const float hi[3])
+{
+    kdrt__plane best;
+    float area = kdrt__half_area(lo, hi);
+    int k;
+    best.axis = -1, best.pos = 0.0f, best.planar_below = 1, best.cost = INFINITY;
+    if (!(area > 0.0f)) return best;
+    for (k = 0; k < 3; ++k) {
+        const kdrt__event *e = ev->e[k];
+        uint32_t i = 0, count = ev->count[k], below = 0, above = ev->triangles;
+        while (i < count) {
+            float pos = e[i].pos, clo[3], chi[3], p_below, p_above, cost_below, cost_above, scale;
+            uint32_t ends = 0, planars = 0, starts = 0;
+            while (i < count && e[i].pos == pos && e[i].type == KDRT__EVENT_END) ++ends, ++i;
+            while (i < count && e[i].pos == pos && e[i].type == KDRT__EVENT_PLANAR) ++planars, ++i;
+            while (i < count && e[i].pos == pos && e[i].type == KDRT__EVENT_START) ++starts, ++i;
+            above -= planars + ends;
+            if (pos > lo[k] && pos < hi[k]) {
+                memcpy(clo, lo, sizeof clo), memcpy(chi, hi, sizeof chi);
+                chi[k] = pos;
+                p_below = kdrt__half_area(lo, chi) / area;
+                clo[k] = pos;
+                p_above = kdrt__half_area(clo, hi) / area;
+                cost_below = p_below * (float)(below + planars) + p_above * (float)above;
+                cost_above = p_below * (float)below + p_above * (float)(above + planars);
+                scale = b->sah_isect;
+                if (below + planars == 0 || above == 0) scale *= 1.0f - b->sah_empty_bonus;
+                cost_below = b->sah_trav + scale * cost_below;
+                scale = b->sah_isect;
+                if (below == 0 || above + planars == 0) scale *= 1.0f - b->sah_empty_bonus;
+                cost_above = b->sah_trav + scale * cost_above;
+                if (cost_below < best.cost) best.axis = k, best.pos = pos, best.planar_below = 1, best.cost = cost_below;
+                if (cost_above < best.cost) best.axis = k, best.pos = pos, best.planar_below = 0, best.cost = cost_above;
+            }
+            below += starts + planars;
+        }
+    }
+    return best;
+}
+
+/* dst = the sorted merge of sorted a and b. */
+static void kdrt__merge_events(kdrt__event *dst, const kdrt__event *a, uint32_t na, const kdrt__event *b,
+                               uint32_t nb)
+{
+    uint32_t i = 0, j = 0;
+    while (i < na && j < nb) *dst++ = kdrt__event_less(&b[j], &a[i]) < 0 ? b[j++] : a[i++];
+    while (i < na) *dst++ = a[i++];
+    while (j < nb) *dst++ = b[j++];
+}
+
+/* The node's triangles, read off its x events (one start or planar event each). */
+static void kdrt__event_triangles(const kdrt__events *ev, uint32_t *tris)
+{
+    uint32_t i, n = 0;
+    for (i = 0; i < ev->count[0]; ++i)
+        if (ev->e[0][i].type != KDRT__EVENT_END) tris[n++] = ev->e[0][i].tri;
+}
+
+/* Builds the subtree of a node with box [lo, hi]; takes ownership of ev's arrays. */
+static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__events *ev, const float lo[3], const float hi[3],
+                                  uint32_t depth)
+{
+    kdrt__events child[2];
+    kdrt__event *spill = NULL;
+    uint32_t node, n = ev->triangles, *tris = NULL, i, c, k, straddlers = 0;
+    float child_lo[2][3], child_hi[2][3];
+    kdrt__plane plane;
+    kdrt_result r;
+
+    memset(child, 0, sizeof child);
+    if (b->node_count >= KDRT_MAX_TRIANGLES) { r = KDRT_ERROR_SIZE_OVERFLOW; goto done; }
+    r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count + 1,
+                      sizeof(kdrt__node));
+    if (r != KDRT_SUCCESS) goto done;
+    node = b->node_count++;
+    tris = (uint32_t *)kdrt__alloc(b->allocator, (size_t)n * sizeof(uint32_t));
+    if (!tris) { r = KDRT_ERROR_OUT_OF_MEMORY; goto done; }
+    kdrt__event_triangles(ev, tris);
+
+    plane.axis = -1;
+    if (n > b->max_leaf_size && depth < b->max_depth) plane = kdrt__best_plane(b, ev, lo, hi);
+    /* Cost-based termination: split only when the SAH says it is cheaper than a leaf. */
+    if (plane.axis < 0 || !(plane.cost < b->sah_isect * (float)n)) {
+        r = kdrt__emit_leaf(b, node, tris, n, depth);
+        goto done;
+    }
+
+    /* Sides: both unless the events on the split axis say otherwise. */
+    for (i = 0; i < n; ++i) b->side[tris[i]] = KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
+    for (i = 0; i < ev->count[plane.axis]; ++i) {
+        const kdrt__event *e = &ev->e[plane.axis][i];
+        if (e->type == KDRT__EVENT_END && e->pos <= plane.pos) b->side[e->tri] = KDRT__SIDE_BELOW;
+        else if (e->type == KDRT__EVENT_START && e->pos >= plane.pos) b->side[e->tri] = KDRT__SIDE_ABOVE;
+        else if (e->type == KDRT__EVENT_PLANAR)
+            b->side[e->tri] = e->pos < plane.pos || (e->pos == plane.pos && plane.planar_below)
+                                  ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
+    }
+    for (c = 0; c < 2; ++c) {
+        memcpy(child_lo[c], lo, sizeof child_lo[c]), memcpy(child_hi[c], hi, sizeof child_hi[c]);
+    }
+    child_hi[0][plane.axis] = plane.pos, child_lo[1][plane.axis] = plane.pos;
+    for (i = 0; i < n; ++i) straddlers += b->side[tris[i]] == (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE);
+
+    /* Each child: its one-sided triangles' events, filtered in order, merged with the sorted
+       events of the straddlers clipped to its box (perfect splits). */
+    spill = (kdrt__event *)kdrt__alloc(b->allocator, 3 * 2 * (size_t)straddlers * sizeof(kdrt__event));
+    if (!spill) { r = KDRT_ERROR_OUT_OF_MEMORY; goto done; }
+    for (c = 0; c < 2; ++c) {
+        unsigned char only = c ? KDRT__SIDE_ABOVE : KDRT__SIDE_BELOW;
+        kdrt__events clipped;
+        memset(&clipped, 0, sizeof clipped);
+        for (k = 0; k < 3; ++k) {
+            child[c].e[k] = (kdrt__event *)kdrt__alloc(b->allocator,
+                                                       ((size_t)ev->count[k] + 2 * (size_t)straddlers) * sizeof(kdrt__event));
+            if (!child[c].e[k]) { r = KDRT_ERROR_OUT_OF_MEMORY; goto done; }
+            clipped.e[k] = spill + (size_t)k * 2 * straddlers;
+        }
+        for (i = 0; i < n; ++i) {
+            float clo[3], chi[3];
+            if (b->side[tris[i]] == only) child[c].triangles += 1;
+            else if (b->side[tris[i]] != (only ^ 3u) &&
+                     kdrt__clip_triangle(b->mesh, tris[i], child_lo[c], child_hi[c], clo, chi))
+                kdrt__push_events(&clipped, tris[i], clo, chi);
+        }
+        for (k = 0; k < 3; ++k) {
+            kdrt__event *kept = child[c].e[k] + clipped.count[k];
+            uint32_t m = 0;
+            for (i = 0; i < ev->count[k]; ++i)
+                if (b->side[ev->e[k][i].tri] == only) kept[m++] = ev->e[k][i];
+            qsort(clipped.e[k], clipped.count[k], sizeof(kdrt__event), kdrt__event_less);
+            /* kept sits after room for the clipped events, so merging from the front never
+               overwrites what it still has to read. */
+            kdrt__merge_events(child[c].e[k], kept, m, clipped.e[k], clipped.count[k]);
+            child[c].count[k] = m + clipped.count[k];
+        }
+        child[c].triangles += clipped.triangles;
+    }
+    kdrt__free(b->allocator, spill), spill = NULL;
+    kdrt__free(b->allocator, tris), tris = NULL;
+    kdrt__events_free(b->allocator, ev);
+
+    r = kdrt__sah_node(b, &child[0], child_lo[0], child_hi[0], depth + 1);
+    if (r == KDRT_SUCCESS) {
+        b->nodes[node].u.split = plane.pos;
+        b->nodes[node].bits = (b->node_count << 2) | (uint32_t)plane.axis;
+        r = kdrt__sah_node(b, &child[1], child_lo[1], child_hi[1], depth + 1);
+    }
+done:
+    kdrt__free(b->allocator, spill);
+    kdrt__free(b->allocator, tris);
+    kdrt__events_free(b->allocator, ev);
+    kdrt__events_free(b->allocator, &child[0]);
+    kdrt__events_free(b->allocator, &child[1]);
+    return r;
+}
+
 typedef struct kdrt__key {
     float key;
     uint32_t tri;
@@ -784,7 +1090,13 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     *out_tree = NULL;
     r = kdrt__check_view(mesh, &m);
     if (r != KDRT_SUCCESS) return r;
-    if (opt.builder != KDRT_BUILDER_DEFAULT && opt.builder != KDRT_BUILDER_MEDIAN) return KDRT_ERROR_INVALID_OPTION;
+    if (opt.builder != KDRT_BUILDER_DEFAULT && opt.builder != KDRT_BUILDER_MEDIAN && opt.builder != KDRT_BUILDER_SAH)
+        return KDRT_ERROR_INVALID_OPTION;
+    /* Negated comparisons also turn NaN away. */
+    if (!(opt.sah_traversal_cost >= 0.0f) || !(opt.sah_intersection_cost >= 0.0f) ||
+        !(opt.sah_empty_bonus >= 0.0f && opt.sah_empty_bonus < 1.0f) ||
+        !kdrt__finite(opt.sah_traversal_cost) || !kdrt__finite(opt.sah_intersection_cost))
+        return KDRT_ERROR_INVALID_OPTION;
     if (opt.intersector != KDRT_INTERSECTOR_DEFAULT && opt.intersector != KDRT_INTERSECTOR_WATERTIGHT &&
         opt.intersector != KDRT_INTERSECTOR_FAST)
         return KDRT_ERROR_INVALID_OPTION;
@@ -794,6 +1106,10 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     memset(&b, 0, sizeof b);
     b.allocator = &opt.allocator;
     b.max_leaf_size = opt.max_leaf_size;
+    b.mesh = &m;
+    b.sah_trav = opt.sah_traversal_cost > 0.0f ? opt.sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
+    b.sah_isect = opt.sah_intersection_cost > 0.0f ? opt.sah_intersection_cost : KDRT_DEFAULT_SAH_INTERSECTION_COST;
+    b.sah_empty_bonus = opt.sah_empty_bonus > 0.0f ? opt.sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
     b.max_depth = opt.max_depth ? opt.max_depth : kdrt__default_depth(m.triangle_count);
     if (b.max_depth > KDRT_MAX_DEPTH) b.max_depth = KDRT_MAX_DEPTH;
 
@@ -853,6 +1169,17 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
         /* No tree: one leaf holding every usable triangle, tested in order. */
         r = kdrt__reserve(b.allocator, (void **)&b.nodes, &b.node_capacity, 1, sizeof(kdrt__node));
         if (r == KDRT_SUCCESS) b.node_count = 1, r = kdrt__emit_leaf(&b, 0, valid, n, 0);
+    } else if (opt.builder == KDRT_BUILDER_SAH) {
+        /* Events sorted once per axis; every node then filters its parent's. */
+        kdrt__events ev;
+        memset(&ev, 0, sizeof ev);
+        for (a = 0; a < 3; ++a) {
+            ev.e[a] = (kdrt__event *)kdrt__alloc(&opt.allocator, 2 * (size_t)n * sizeof(kdrt__event));
+            if (!ev.e[a]) { kdrt__events_free(&opt.allocator, &ev); r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
+        }
+        for (i = 0; i < n; ++i) kdrt__push_events(&ev, valid[i], b.lo + 3 * (size_t)valid[i], b.hi + 3 * (size_t)valid[i]);
+        for (a = 0; a < 3; ++a) qsort(ev.e[a], ev.count[a], sizeof(kdrt__event), kdrt__event_less);
+        r = kdrt__sah_node(&b, &ev, tree->bounds.min, tree->bounds.max, 0);
     } else {
         /* Sort once per axis by centroid; every node then filters its parent's lists. */
         lists = (uint32_t *)kdrt__alloc(&opt.allocator, 3 * (size_t)n * sizeof(uint32_t));

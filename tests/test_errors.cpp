@@ -181,7 +181,7 @@ TEST_CASE("errors: unknown builder or flag", "[errors]") {
     kdrt_triangles m{};
     m.positions = v, m.vertex_count = 3, m.triangle_count = 1;
     kdrt_tree *tree;
-    for (int builder : {2, 3, 99, -1}) {
+    for (int builder : {3, 4, 99, -1}) {
         INFO("builder " << builder);
         kdrt_build_options o = kdrt_default_build_options();
         int raw = builder;
@@ -196,12 +196,37 @@ TEST_CASE("errors: unknown builder or flag", "[errors]") {
         CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
         CHECK(tree == nullptr);
     }
-    for (kdrt_builder builder : {KDRT_BUILDER_DEFAULT, KDRT_BUILDER_MEDIAN}) {
+    for (kdrt_builder builder : {KDRT_BUILDER_DEFAULT, KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
         kdrt_build_options o = kdrt_default_build_options();
         o.builder = builder;
         o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
         REQUIRE(try_build(m, o, &tree) == KDRT_SUCCESS);
         kdrt_tree_free(tree);
+    }
+}
+
+TEST_CASE("errors: SAH costs out of range", "[errors]") {
+    const float v[] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    kdrt_triangles m{};
+    m.positions = v, m.vertex_count = 3, m.triangle_count = 1;
+    kdrt_tree *tree;
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    for (float bad : {-1.0f, nan, inf}) {
+        INFO("cost " << bad);
+        kdrt_build_options o = kdrt_default_build_options();
+        o.builder = KDRT_BUILDER_SAH;
+        o.sah_traversal_cost = bad;
+        CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
+        o = kdrt_default_build_options();
+        o.sah_intersection_cost = bad;
+        CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
+    }
+    for (float bad : {-0.5f, 1.0f, 2.0f, nan}) {
+        INFO("empty bonus " << bad);
+        kdrt_build_options o = kdrt_default_build_options();
+        o.sah_empty_bonus = bad;
+        CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
+        CHECK(tree == nullptr);
     }
 }
 
@@ -748,6 +773,16 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
     {  // empty mesh
         kdrt_triangles empty{};
         fail_each_allocation(empty, options_with_leaf(4), KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+    }
+    {  // the SAH builder allocates per node: a smaller soup keeps the k-th-failure loop short
+        kt::Mesh small = kt::random_soup(60, 18);
+        kdrt_triangles sv = small.view();
+        for (uint32_t leaf : {1u, 4u}) {
+            INFO("SAH, leaf size " << leaf);
+            kdrt_build_options o = options_with_leaf(leaf);
+            o.builder = KDRT_BUILDER_SAH;
+            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+        }
     }
 }
 

@@ -208,13 +208,14 @@ std::vector<unsigned char> occluded_all(const kdrt_tree *tree, const std::vector
     return occluded;
 }
 
-TreePtr build(const Mesh &mesh, uint32_t max_leaf_size) {
+TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
     options.max_leaf_size = max_leaf_size;
+    options.builder = builder;
     kdrt_tree *tree = nullptr;
     kdrt_result r = kdrt_tree_build(&view, &options, &tree, nullptr);
-    INFO("build " << mesh.name << " leaf size " << max_leaf_size << ": " << kdrt_result_string(r));
+    INFO("build " << mesh.name << " builder " << builder << " leaf size " << max_leaf_size << ": " << kdrt_result_string(r));
     REQUIRE(r == KDRT_SUCCESS);
     return TreePtr(tree);
 }
@@ -267,10 +268,16 @@ void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute
     brute_force_occluded_rays = std::min(brute_force_occluded_rays, rays.size());
     log << mesh.name << ": " << mesh.triangle_count() << " triangles, " << rays.size() << " rays (kdrt_occluded at leaf size 0: the first "
         << brute_force_occluded_rays << ")\n"
-        << "  leaf    hits   exact  ambiguous  wrong  unlike leaf 0  occluded unlike hit";
+        << "  tree        hits   exact  ambiguous  wrong  unlike leaf 0  occluded unlike hit";
     std::vector<kdrt_hit> brute;  // leaf size 0's answers
-    for (uint32_t leaf : kLeafSizes) {
-        TreePtr tree = build(mesh, leaf);
+    std::vector<std::pair<kdrt_builder, uint32_t>> trees;  // leaf size 0 first
+    for (uint32_t leaf : kLeafSizes) trees.emplace_back(KDRT_BUILDER_MEDIAN, leaf);
+    for (uint32_t leaf : kSahLeafSizes) trees.emplace_back(KDRT_BUILDER_SAH, leaf);
+    for (const auto &config : trees) {
+        const kdrt_builder builder = config.first;
+        const uint32_t leaf = config.second;
+        const char *name = builder == KDRT_BUILDER_SAH ? "sah" : "median";
+        TreePtr tree = build(mesh, leaf, builder);
         const std::vector<kdrt_hit> hits = trace_all(tree.get(), rays);
         // Leaf size 0 tests every triangle for every ray; on big meshes its kdrt_occluded pass
         // takes a leading part of the rays (kdrt_intersect takes them all).
@@ -293,11 +300,11 @@ void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute
                                          std::to_string(int(occluded[i])) + ", kdrt_intersect " + hex_hit(h);
         }
         char row[128];
-        std::snprintf(row, sizeof row, "\n  %4u %7zu %7zu %10zu %6zu %14zu %20zu", leaf, hit_count, tally.exact, tally.ambiguous,
+        std::snprintf(row, sizeof row, "\n  %-6s %4u %7zu %7zu %10zu %6zu %14zu %20zu", name, leaf, hit_count, tally.exact, tally.ambiguous,
                       tally.wrong, not_as_brute, occluded_differs);
         log << row;
 
-        INFO(mesh.name << ", leaf size " << leaf << ", " << rays.size() << " rays (seed " << seed << ")");
+        INFO(mesh.name << ", " << name << " builder, leaf size " << leaf << ", " << rays.size() << " rays (seed " << seed << ")");
         {
             INFO("first wrong: " << tally.first_wrong);
             CHECK(tally.wrong == 0);

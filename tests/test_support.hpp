@@ -55,16 +55,18 @@ struct TreePtr {
     ~TreePtr() { kdrt_tree_free(tree); }
     kdrt_tree *get() const { return tree; }
 };
-TreePtr build(const Mesh &mesh, uint32_t max_leaf_size);
+TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_MEDIAN);
 
 // How many rays the reference suites trace: 100,000, or what KDRT_TEST_RAYS says.
 size_t reference_ray_count();
 
 // The leaf sizes the reference suites build; 0 (no tree: every triangle tested) comes first.
 constexpr uint32_t kLeafSizes[] = {0, 1, 2, 4, 8, 16, 64};
+// The leaf sizes they build with the SAH builder too.
+constexpr uint32_t kSahLeafSizes[] = {1, 4, 16};
 
 // The reference suites' check of one scene, with ray_count random_rays(seed) over its box, for
-// every leaf size in kLeafSizes:
+// every leaf size in kLeafSizes (median builder) and kSahLeafSizes (SAH builder):
 //  (a) kdrt_intersect() agrees with the oracle on every ray, and few rays are ambiguous;
 //  (b) it returns bit for bit what leaf size 0 returns (the header's tie-breaking promise);
 //  (c) kdrt_occluded() reports a hit exactly when kdrt_intersect() finds one.
