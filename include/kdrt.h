@@ -102,9 +102,32 @@
      the exact k is within a few double-precision ulps of 0, far closer than a float input's own
      rounding. The refracted direction is within 2^-22 rad of Snell's law evaluated in
      double at every angle, the ill-conditioned ones near the critical angle included (tested).
-     In a path tracer, with R = kdrt_fresnel_dielectric(cos_i, eta): reflect when a uniform random
-     number is below R or when kdrt_refract() returns 0 (it then wrote the mirror direction; near
-     the critical angle the two may disagree by the rounding of cos_i), and refract otherwise.
+     The medium stack is the original course ray tracer's, keyed by object: entering an object
+     pushes its index of refraction, leaving it removes that object's entry wherever it is (so
+     overlapping and nested media work), and outside_ior (the original's AIR_INDEX_MEDIUM) lies
+     below everything. The current medium is the entered one of highest priority, ties going to
+     the latest entered. A surface is real when crossing it changes the current medium; otherwise
+     it is false and the ray goes straight on (Schmidt and Budge, "Simple Nested Dielectrics in
+     Ray Traced Images", JGT 2002): model a glass of water with the water overlapping the glass
+     and give the glass the higher priority, and the water's surface inside the glass is ignored.
+     Give every object the same priority for the original's plain stack. The stack is fixed-size
+     plain data (KDRT_MEDIA_STACK_CAPACITY entries) and a full stack is an error, never a crash.
+     At each hit of a transparent object obj, with ior[] and priority[] the caller's:
+
+         kdrt_media_crossing x = kdrt_media_at_surface(&stack, obj, ior[obj], priority[obj]);
+         kdrt_result r = KDRT_SUCCESS;
+         int crossed = 1;                                   // a false surface: straight on
+         if (x.real) {
+             float eta = x.eta_incident / x.eta_transmitted;
+             if (random01() < kdrt_fresnel_dielectric(cos_i, eta))
+                 crossed = 0, kdrt_reflect(dir, normal, dir);
+             else                                           // 0: reflected after all (near the
+                 crossed = kdrt_refract(dir, normal, eta, dir) != 0; // critical angle); -1: bad
+         }                                                  // input, dir unchanged, crossed
+         if (crossed)                                       // after a reflection: unchanged
+             r = x.entering ? kdrt_media_enter(&stack, obj, ior[obj], priority[obj])
+                            : kdrt_media_leave(&stack, obj);
+         if (r != KDRT_SUCCESS) ...                         // e.g. a full stack: end the path
 
    LICENSE
      MIT No Attribution, see the end of this file.
@@ -151,7 +174,10 @@ typedef enum kdrt_result {
     KDRT_ERROR_INDEX_OUT_OF_RANGE, /* a triangle refers to a vertex at or past vertex_count */
     KDRT_ERROR_NON_FINITE_VERTEX,  /* a triangle has a NaN or infinite coordinate */
     KDRT_ERROR_SIZE_OVERFLOW,      /* a count or byte size beyond what can be addressed */
-    KDRT_ERROR_OUT_OF_MEMORY       /* the allocator returned NULL */
+    KDRT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
+    KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY media entered */
+    KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
+    KDRT_ERROR_INVALID_IOR         /* an index of refraction that is NaN, infinite, 0 or negative */
 } kdrt_result;
 
 typedef struct kdrt_aabb {
@@ -286,6 +312,53 @@ KDRT_API void kdrt_fresnel_dielectric_sp(float cos_i, float eta, float *rs, floa
    glass) and 0.060 for water (1.333): measured by tests/test_optics.cpp. Same inputs and special
    cases as kdrt_fresnel_dielectric(). */
 KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta);
+
+/* The medium stack (see OPTICS). Define KDRT_MEDIA_STACK_CAPACITY the same in every file. */
+#ifndef KDRT_MEDIA_STACK_CAPACITY
+#define KDRT_MEDIA_STACK_CAPACITY 16
+#endif
+
+typedef struct kdrt_medium {
+    uint32_t object; /* the caller's id of the object whose inside this is */
+    float ior;       /* its index of refraction */
+    int priority;    /* higher wins where media overlap; all equal: the original's plain stack */
+} kdrt_medium;
+
+/* Plain data: copy it to branch a path. Set it up with kdrt_media_init(). */
+typedef struct kdrt_media_stack {
+    kdrt_medium media[KDRT_MEDIA_STACK_CAPACITY]; /* in the order entered */
+    uint32_t count;
+    float outside_ior; /* the medium outside every object: air, 1.000293, or 1 */
+} kdrt_media_stack;
+
+/* What happens where a ray meets a surface of an object, from kdrt_media_at_surface(). */
+typedef struct kdrt_media_crossing {
+    int entering;          /* 1: the object is not in the stack and the ray enters it; 0: it leaves */
+    int real;              /* 0: a false surface, which changes no medium: ignore it (see OPTICS) */
+    float eta_incident;    /* index of the current medium */
+    float eta_transmitted; /* index beyond the surface; eta_incident when the surface is false */
+} kdrt_media_crossing;
+
+/* An empty stack in a medium of index outside_ior. Invalid outside_ior: KDRT_ERROR_INVALID_IOR,
+   and the stack is still set up, with index 1. */
+KDRT_API kdrt_result kdrt_media_init(kdrt_media_stack *stack, float outside_ior);
+/* Index of the current medium: the entered one of highest priority, ties to the latest entered,
+   or outside_ior. A NULL stack is an empty one with outside index 1. */
+KDRT_API float kdrt_media_current_ior(const kdrt_media_stack *stack);
+/* Object of the current medium, or KDRT_INVALID_ID outside every object (or for NULL). */
+KDRT_API uint32_t kdrt_media_current_object(const kdrt_media_stack *stack);
+KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object);
+/* Pushes object. KDRT_ERROR_MEDIA_STACK_FULL, KDRT_ERROR_INVALID_IOR or
+   KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. An object entered twice is held twice. */
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority);
+/* Removes object's latest entry wherever it is (media may overlap); the others keep their order.
+   KDRT_ERROR_NOT_IN_MEDIUM or KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. */
+KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object);
+/* Classifies a surface of object hit by a ray with this stack. ior and priority are the
+   object's, used when the ray enters it (when it leaves, the stack's entry counts). Changes
+   nothing. A NULL stack is an empty one with outside index 1. */
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
+                                                   int priority);
 
 #ifdef __cplusplus
 }
@@ -456,6 +529,9 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
     case KDRT_ERROR_NON_FINITE_VERTEX: return "a triangle has a NaN or infinite coordinate";
     case KDRT_ERROR_SIZE_OVERFLOW: return "a count or byte size is too large to address";
     case KDRT_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case KDRT_ERROR_MEDIA_STACK_FULL: return "the medium stack is full (KDRT_MEDIA_STACK_CAPACITY)";
+    case KDRT_ERROR_NOT_IN_MEDIUM: return "leaving an object the medium stack does not hold";
+    case KDRT_ERROR_INVALID_IOR: return "an index of refraction is NaN, infinite, zero or negative";
     }
     return "unknown kdrt_result";
 }
@@ -1017,7 +1093,7 @@ KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
     return tree && ray && kdrt__traverse(tree, ray, &hit, 1);
 }
 
-/* ---- optics: reflection, refraction, Fresnel ---- */
+/* ---- optics: reflection, refraction, Fresnel, the medium stack ---- */
 
 static int kdrt__finite_positive(float x) { return x > 0.0f && kdrt__finite(x); }
 
@@ -1145,6 +1221,106 @@ KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta)
     }
     r0 *= r0, m = 1.0 - c;
     return (float)(r0 + (1.0 - r0) * m * m * m * m * m);
+}
+
+typedef char kdrt__media_stack_has_room[KDRT_MEDIA_STACK_CAPACITY >= 1 ? 1 : -1];
+
+/* Entries to read: count, but never past the array, whatever the caller wrote into count. */
+static uint32_t kdrt__media_count(const kdrt_media_stack *s)
+{
+    return s->count < KDRT_MEDIA_STACK_CAPACITY ? s->count : KDRT_MEDIA_STACK_CAPACITY;
+}
+
+/* Index of the current medium, the highest priority and latest entered, leaving out entry skip;
+   KDRT_INVALID_ID for the outside medium. */
+static uint32_t kdrt__media_current(const kdrt_media_stack *s, uint32_t skip)
+{
+    uint32_t i, best = KDRT_INVALID_ID, n = kdrt__media_count(s);
+    for (i = 0; i < n; ++i)
+        if (i != skip && (best == KDRT_INVALID_ID || s->media[i].priority >= s->media[best].priority)) best = i;
+    return best;
+}
+
+static float kdrt__media_ior(const kdrt_media_stack *s, uint32_t entry)
+{
+    return entry == KDRT_INVALID_ID ? s->outside_ior : s->media[entry].ior;
+}
+
+/* Index of object's latest entry, or KDRT_INVALID_ID. */
+static uint32_t kdrt__media_find(const kdrt_media_stack *s, uint32_t object)
+{
+    uint32_t i = kdrt__media_count(s);
+    while (i-- > 0)
+        if (s->media[i].object == object) return i;
+    return KDRT_INVALID_ID;
+}
+
+KDRT_API kdrt_result kdrt_media_init(kdrt_media_stack *stack, float outside_ior)
+{
+    if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
+    memset(stack, 0, sizeof *stack);
+    stack->outside_ior = kdrt__finite_positive(outside_ior) ? outside_ior : 1.0f;
+    return kdrt__finite_positive(outside_ior) ? KDRT_SUCCESS : KDRT_ERROR_INVALID_IOR;
+}
+
+KDRT_API float kdrt_media_current_ior(const kdrt_media_stack *stack)
+{
+    return stack ? kdrt__media_ior(stack, kdrt__media_current(stack, KDRT_INVALID_ID)) : 1.0f;
+}
+
+KDRT_API uint32_t kdrt_media_current_object(const kdrt_media_stack *stack)
+{
+    uint32_t entry = stack ? kdrt__media_current(stack, KDRT_INVALID_ID) : KDRT_INVALID_ID;
+    return entry == KDRT_INVALID_ID ? KDRT_INVALID_ID : stack->media[entry].object;
+}
+
+KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object)
+{
+    return stack && kdrt__media_find(stack, object) != KDRT_INVALID_ID;
+}
+
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority)
+{
+    kdrt_medium *m;
+    if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
+    if (!kdrt__finite_positive(ior)) return KDRT_ERROR_INVALID_IOR;
+    if (stack->count >= KDRT_MEDIA_STACK_CAPACITY) return KDRT_ERROR_MEDIA_STACK_FULL;
+    m = &stack->media[stack->count++];
+    m->object = object, m->ior = ior, m->priority = priority;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object)
+{
+    uint32_t i, n;
+    if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
+    i = kdrt__media_find(stack, object), n = kdrt__media_count(stack);
+    if (i == KDRT_INVALID_ID) return KDRT_ERROR_NOT_IN_MEDIUM;
+    for (; i + 1 < n; ++i) stack->media[i] = stack->media[i + 1];
+    stack->count = n - 1;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
+                                                   int priority)
+{
+    kdrt_media_stack empty;
+    kdrt_media_crossing x;
+    uint32_t current, entry;
+    if (!stack) kdrt_media_init(&empty, 1.0f), stack = &empty;
+    current = kdrt__media_current(stack, KDRT_INVALID_ID);
+    entry = kdrt__media_find(stack, object);
+    x.entering = entry == KDRT_INVALID_ID;
+    x.eta_incident = kdrt__media_ior(stack, current);
+    if (x.entering) /* the object becomes current unless a higher priority medium holds the ray */
+        x.real = current == KDRT_INVALID_ID || priority >= stack->media[current].priority;
+    else /* leaving: only the current medium's surface changes anything */
+        x.real = entry == current;
+    if (!x.real)
+        x.eta_transmitted = x.eta_incident;
+    else
+        x.eta_transmitted = x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
+    return x;
 }
 
 #ifdef __cplusplus
