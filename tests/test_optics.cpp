@@ -504,3 +504,196 @@ TEST_CASE("optics: Schlick's approximation is off by no more than the header say
     CHECK(kdrt_fresnel_schlick(0.0f, 1.0f / 1.5f) == 1.0f);
     CHECK(kdrt_fresnel_schlick(0.5f, 1.5f) == 1.0f);
 }
+
+// ---- the medium stack ----
+
+namespace {
+
+struct Crossing {
+    int entering, real;
+    float eta_incident, eta_transmitted;
+};
+
+// Classifies the surface, checks it against what is expected, then crosses it as the manual's
+// loop does (a real surface is taken as transmitted), checking the current index afterwards.
+void cross(kdrt_media_stack &stack, uint32_t object, float ior, int priority, Crossing expected) {
+    kdrt_media_crossing x = kdrt_media_at_surface(&stack, object, ior, priority);
+    INFO("object " << object << ": expected entering " << expected.entering << ", real " << expected.real
+                   << ", eta " << expected.eta_incident << " -> " << expected.eta_transmitted);
+    CHECK(x.entering == expected.entering);
+    CHECK(x.real == expected.real);
+    CHECK(x.eta_incident == expected.eta_incident);
+    CHECK(x.eta_transmitted == expected.eta_transmitted);
+    CHECK(kdrt_media_current_ior(&stack) == expected.eta_incident);
+    kdrt_result r = x.entering ? kdrt_media_enter(&stack, object, ior, priority) : kdrt_media_leave(&stack, object);
+    REQUIRE(r == KDRT_SUCCESS);
+    CHECK(kdrt_media_current_ior(&stack) == expected.eta_transmitted);
+    CHECK(kdrt_media_contains(&stack, object) == expected.entering);
+}
+
+const float kAir = 1.000293f, kWater = 1.333f, kGlass = 1.5f, kFlint = 1.62f;
+
+}  // namespace
+
+TEST_CASE("media: a glass ball in water, entered and left along a ray", "[optics]") {
+    kdrt_media_stack stack;
+    REQUIRE(kdrt_media_init(&stack, kAir) == KDRT_SUCCESS);
+    CHECK(kdrt_media_current_ior(&stack) == kAir);
+    CHECK(kdrt_media_current_object(&stack) == KDRT_INVALID_ID);
+    const uint32_t water = 1, ball = 2;
+    cross(stack, water, kWater, 0, {1, 1, kAir, kWater});
+    cross(stack, ball, kGlass, 0, {1, 1, kWater, kGlass});
+    CHECK(kdrt_media_current_object(&stack) == ball);
+    // A total internal reflection inside the ball changes nothing: the next hit is the ball again.
+    kdrt_media_crossing inside = kdrt_media_at_surface(&stack, ball, kGlass, 0);
+    CHECK((inside.entering == 0 && inside.real == 1));
+    cross(stack, ball, kGlass, 0, {0, 1, kGlass, kWater});
+    cross(stack, water, kWater, 0, {0, 1, kWater, kAir});
+    CHECK(stack.count == 0);
+    CHECK(kdrt_media_current_ior(&stack) == kAir);
+}
+
+TEST_CASE("media: two touching and two overlapping spheres, crossed in either order", "[optics]") {
+    const uint32_t a = 10, b = 20;
+    kdrt_media_stack stack;
+    REQUIRE(kdrt_media_init(&stack, 1.0f) == KDRT_SUCCESS);
+    SECTION("overlapping: in A, in B, out of A, out of B; B, the latest, fills the overlap") {
+        cross(stack, a, kGlass, 0, {1, 1, 1.0f, kGlass});
+        cross(stack, b, kFlint, 0, {1, 1, kGlass, kFlint});
+        cross(stack, a, kGlass, 0, {0, 0, kFlint, kFlint});  // A's surface inside B: false
+        CHECK(kdrt_media_current_object(&stack) == b);
+        cross(stack, b, kFlint, 0, {0, 1, kFlint, 1.0f});
+    }
+    SECTION("overlapping: in A, in B, out of B, out of A") {
+        cross(stack, a, kGlass, 0, {1, 1, 1.0f, kGlass});
+        cross(stack, b, kFlint, 0, {1, 1, kGlass, kFlint});
+        cross(stack, b, kFlint, 0, {0, 1, kFlint, kGlass});
+        cross(stack, a, kGlass, 0, {0, 1, kGlass, 1.0f});
+    }
+    SECTION("touching: at the common point the hits come out of A first, or into B first") {
+        kdrt_media_stack other = stack;
+        cross(stack, a, kGlass, 0, {1, 1, 1.0f, kGlass});
+        cross(stack, a, kGlass, 0, {0, 1, kGlass, 1.0f});
+        cross(stack, b, kFlint, 0, {1, 1, 1.0f, kFlint});
+        cross(other, a, kGlass, 0, {1, 1, 1.0f, kGlass});
+        cross(other, b, kFlint, 0, {1, 1, kGlass, kFlint});
+        cross(other, a, kGlass, 0, {0, 0, kFlint, kFlint});
+        // Either way the ray ends up in B alone.
+        CHECK((stack.count == 1 && other.count == 1));
+        CHECK(std::memcmp(&stack.media[0], &other.media[0], sizeof stack.media[0]) == 0);
+        cross(stack, b, kFlint, 0, {0, 1, kFlint, 1.0f});
+    }
+}
+
+TEST_CASE("media: Schmidt and Budge priorities, a glass of water with overlapping surfaces", "[optics]") {
+    // The water's volume overlaps the glass's walls; the glass has the higher priority, so the
+    // water's surfaces inside the walls are false, and the walls' inner surfaces are glass/water.
+    const uint32_t glass = 1, water = 2;
+    kdrt_media_stack stack;
+    REQUIRE(kdrt_media_init(&stack, kAir) == KDRT_SUCCESS);
+    cross(stack, glass, kGlass, 2, {1, 1, kAir, kGlass});     // into the side wall
+    cross(stack, water, kWater, 1, {1, 0, kGlass, kGlass});   // the water's side, inside the wall
+    cross(stack, glass, kGlass, 2, {0, 1, kGlass, kWater});   // the wall's inner face
+    cross(stack, glass, kGlass, 2, {1, 1, kWater, kGlass});   // into the bottom
+    cross(stack, water, kWater, 1, {0, 0, kGlass, kGlass});   // the water's bottom, inside it
+    cross(stack, glass, kGlass, 2, {0, 1, kGlass, kAir});     // out of the bottom
+    CHECK(stack.count == 0);
+    // Equal priorities: the plain stack, where the latest entered medium is current.
+    cross(stack, glass, kGlass, 0, {1, 1, kAir, kGlass});
+    cross(stack, water, kWater, 0, {1, 1, kGlass, kWater});
+    // A higher priority entered later wins at once; a lower one entered later is false.
+    cross(stack, 3, kFlint, 5, {1, 1, kWater, kFlint});
+    cross(stack, 4, 2.0f, -1, {1, 0, kFlint, kFlint});
+    CHECK(kdrt_media_current_object(&stack) == 3);
+}
+
+TEST_CASE("media: a full stack and leaving an object not entered are errors that change nothing", "[optics]") {
+    kdrt_media_stack stack;
+    REQUIRE(kdrt_media_init(&stack, 1.0f) == KDRT_SUCCESS);
+    for (uint32_t k = 0; k < KDRT_MEDIA_STACK_CAPACITY; ++k)
+        REQUIRE(kdrt_media_enter(&stack, 100 + k, 1.0f + k / 64.0f, 0) == KDRT_SUCCESS);
+    kdrt_media_stack before = stack;
+    CHECK(kdrt_media_enter(&stack, 999, 1.5f, 0) == KDRT_ERROR_MEDIA_STACK_FULL);
+    CHECK(std::memcmp(&stack, &before, sizeof stack) == 0);
+    CHECK(kdrt_media_leave(&stack, 999) == KDRT_ERROR_NOT_IN_MEDIUM);
+    CHECK(std::memcmp(&stack, &before, sizeof stack) == 0);
+    CHECK(kdrt_media_enter(&stack, 999, kNaN, 0) == KDRT_ERROR_INVALID_IOR);
+    for (kdrt_result r : {KDRT_ERROR_MEDIA_STACK_FULL, KDRT_ERROR_NOT_IN_MEDIUM, KDRT_ERROR_INVALID_IOR})
+        CHECK(std::strcmp(kdrt_result_string(r), "unknown kdrt_result") != 0);
+    // Leaving from the middle keeps the others in order; after that there is room again.
+    REQUIRE(kdrt_media_leave(&stack, 105) == KDRT_SUCCESS);
+    CHECK(stack.count == KDRT_MEDIA_STACK_CAPACITY - 1);
+    for (uint32_t k = 0; k + 1 < KDRT_MEDIA_STACK_CAPACITY; ++k)
+        CHECK(stack.media[k].object == 100 + k + (k >= 5));
+    CHECK(kdrt_media_enter(&stack, 999, 1.5f, 0) == KDRT_SUCCESS);
+
+    kdrt_media_stack empty;
+    REQUIRE(kdrt_media_init(&empty, 1.0f) == KDRT_SUCCESS);
+    before = empty;
+    CHECK(kdrt_media_leave(&empty, 7) == KDRT_ERROR_NOT_IN_MEDIUM);
+    CHECK(std::memcmp(&empty, &before, sizeof empty) == 0);
+}
+
+TEST_CASE("media: bad arguments and a corrupted count never crash", "[optics]") {
+    kdrt_media_stack stack;
+    for (float bad : {0.0f, -1.0f, kNaN, kInf}) {
+        CHECK(kdrt_media_init(&stack, bad) == KDRT_ERROR_INVALID_IOR);
+        CHECK((stack.count == 0 && kdrt_media_current_ior(&stack) == 1.0f));  // usable: vacuum
+        CHECK(kdrt_media_enter(&stack, 1, bad, 0) == KDRT_ERROR_INVALID_IOR);
+        CHECK(stack.count == 0);
+    }
+    CHECK(kdrt_media_init(nullptr, 1.0f) == KDRT_ERROR_NULL_ARGUMENT);
+    CHECK(kdrt_media_enter(nullptr, 1, 1.5f, 0) == KDRT_ERROR_NULL_ARGUMENT);
+    CHECK(kdrt_media_leave(nullptr, 1) == KDRT_ERROR_NULL_ARGUMENT);
+    CHECK(kdrt_media_current_ior(nullptr) == 1.0f);
+    CHECK(kdrt_media_current_object(nullptr) == KDRT_INVALID_ID);
+    CHECK(kdrt_media_contains(nullptr, 1) == 0);
+    kdrt_media_crossing x = kdrt_media_at_surface(nullptr, 1, 1.5f, 0);
+    CHECK((x.entering == 1 && x.real == 1 && x.eta_incident == 1.0f && x.eta_transmitted == 1.5f));
+    // The same object entered twice is held twice, and left one entry at a time.
+    REQUIRE(kdrt_media_init(&stack, 1.0f) == KDRT_SUCCESS);
+    REQUIRE(kdrt_media_enter(&stack, 3, 1.5f, 0) == KDRT_SUCCESS);
+    REQUIRE(kdrt_media_enter(&stack, 3, 1.6f, 0) == KDRT_SUCCESS);
+    CHECK(kdrt_media_current_ior(&stack) == 1.6f);
+    REQUIRE(kdrt_media_leave(&stack, 3) == KDRT_SUCCESS);
+    CHECK((kdrt_media_contains(&stack, 3) == 1 && kdrt_media_current_ior(&stack) == 1.5f));
+    // A count beyond the capacity (memory the caller scribbled over) reads no further than the array.
+    stack.count = 0xFFFFFFF0u;
+    CHECK(kdrt_media_enter(&stack, 4, 1.5f, 0) == KDRT_ERROR_MEDIA_STACK_FULL);
+    (void)kdrt_media_current_ior(&stack);
+    (void)kdrt_media_at_surface(&stack, 5, 1.5f, 0);
+    CHECK(kdrt_media_leave(&stack, 3) == KDRT_SUCCESS);
+    CHECK(stack.count == KDRT_MEDIA_STACK_CAPACITY - 1);
+}
+
+TEST_CASE("media: through parallel slabs of water and glass the ray leaves as it came", "[optics]") {
+    // Air, a water layer, a glass plate inside it, and back out, all faces parallel to z = 0:
+    // n sin(theta) is the same in every layer, so the direction out equals the direction in.
+    const uint32_t water = 1, plate = 2;
+    const float up[3] = {0, 0, 1};
+    const uint32_t faces[] = {water, plate, plate, water};
+    const float iors[] = {0, kWater, kGlass};
+    std::mt19937 rng(17);
+    for (int k = 0; k < 500; ++k) {
+        V u = random_perpendicular(V{{0, 0, 1}}, rng);
+        double theta = (80.0 * kPi / 180.0) * k / 500;
+        float start[3], dir[3];
+        to_float(plus(scaled(u, std::sin(theta)), V{{0, 0, -std::cos(theta)}}), start);
+        std::memcpy(dir, start, sizeof dir);
+        kdrt_media_stack stack;
+        REQUIRE(kdrt_media_init(&stack, kAir) == KDRT_SUCCESS);
+        for (uint32_t obj : faces) {
+            kdrt_media_crossing x = kdrt_media_at_surface(&stack, obj, iors[obj], 0);
+            REQUIRE(x.real == 1);
+            REQUIRE(kdrt_refract(dir, up, x.eta_incident / x.eta_transmitted, dir) == 1);
+            REQUIRE((x.entering ? kdrt_media_enter(&stack, obj, iors[obj], 0) : kdrt_media_leave(&stack, obj)) ==
+                    KDRT_SUCCESS);
+        }
+        CHECK(stack.count == 0);
+        // Four refractions, each within the direction tolerance; an error made in a layer of
+        // index n reaches the way out magnified by n cos(theta_n) / cos(theta) <= n / cos(theta).
+        INFO("theta " << theta);
+        double magnification = (kWater + kGlass + kWater + 1.0) / std::cos(theta);
+        CHECK(angle(of(dir), of(start)) <= magnification * kDirectionTolerance);
+    }
+}
