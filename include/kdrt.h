@@ -319,7 +319,8 @@ KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta);
 #endif
 
 typedef struct kdrt_medium {
-    uint32_t object; /* the caller's id of the object whose inside this is */
+    uint32_t object; /* the caller's id of the object whose inside this is; KDRT_INVALID_ID would
+                        read as "outside" in kdrt_media_current_object() */
     float ior;       /* its index of refraction */
     int priority;    /* higher wins where media overlap; all equal: the original's plain stack */
 } kdrt_medium;
