@@ -7,8 +7,8 @@
          #include "kdrt.h"
 
      Everywhere else include it plainly. Define KDRT_STATIC as well to make every function static
-     (private to that one file). The header needs only the C standard library (with libm: C
-     programs on Unix link -lm).
+     (private to that one file). The header needs the C standard library and libm (link
+     with -lm in C: kdrt_hit_surface and the optics functions call sqrt and fma).
 
          kdrt_triangles mesh = {0};
          mesh.positions = vertices;          // float x, y, z per vertex
@@ -104,6 +104,52 @@
      max_leaf_size = 0 means no tree: every query tests every triangle (the baseline of the
      benchmark), through the same API.
 
+   OPTICS
+     For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
+     reflectance for smooth dielectrics, and Schlick's approximation of it. Conventions:
+     - incident is the direction the light travels, towards the surface; outputs point away from
+       it and are unit vectors. Neither incident nor normal needs unit length (kdrt_ray.dir need
+       not be normalised either), and the normal may face either side: it is turned internally to
+       face the light.
+     - eta = eta_incident / eta_transmitted: the index of refraction on the side the light comes
+       from over the index on the far side (glass from air: 1 / 1.5).
+     - cos_i, taken by the Fresnel functions, is the cosine of the angle of incidence, between
+       -incident and the normal facing the light: |incident . normal| / (|incident| |normal|).
+     Numerics: everything is computed in double and rounded to float once, with no epsilon.
+     kdrt_refract() decides total internal reflection from the sign of
+     k = |i|^2 |n|^2 - eta^2 |i x n|^2 (cos^2 of the transmitted angle, scaled), with one rounding
+     (fma): exactly at the critical angle k is 0 and the light refracts to the grazing direction
+     (incident (1, 0, -0.75), normal (0, 0, 1), eta 1.25), and the decision can only be wrong when
+     the exact k is within a few double-precision ulps of 0, far closer than a float input's own
+     rounding. The refracted direction is within 2^-22 rad of Snell's law evaluated in
+     double at every angle, the ill-conditioned ones near the critical angle included (tested).
+     The medium stack is the original course ray tracer's, keyed by object: entering an object
+     pushes its index of refraction, leaving it removes that object's entry wherever it is (so
+     overlapping and nested media work), and outside_ior (the original's AIR_INDEX_MEDIUM) lies
+     below everything. The current medium is the entered one of highest priority, ties going to
+     the latest entered. A surface is real when crossing it changes the current medium; otherwise
+     it is false and the ray goes straight on (Schmidt and Budge, "Simple Nested Dielectrics in
+     Ray Traced Images", JGT 2002): model a glass of water with the water overlapping the glass
+     and give the glass the higher priority, and the water's surface inside the glass is ignored.
+     Give every object the same priority for the original's plain stack. The stack is fixed-size
+     plain data (KDRT_MEDIA_STACK_CAPACITY entries) and a full stack is an error, never a crash.
+     At each hit of a transparent object obj, with ior[] and priority[] the caller's:
+
+         kdrt_media_crossing x = kdrt_media_at_surface(&stack, obj, ior[obj], priority[obj]);
+         kdrt_result r = KDRT_SUCCESS;
+         int crossed = 1;                                   // a false surface: straight on
+         if (x.real) {
+             float eta = x.eta_incident / x.eta_transmitted;
+             if (random01() < kdrt_fresnel_dielectric(cos_i, eta))
+                 crossed = 0, kdrt_reflect(dir, normal, dir);
+             else                                           // 0: reflected after all (near the
+                 crossed = kdrt_refract(dir, normal, eta, dir) != 0; // critical angle); -1: bad
+         }                                                  // input, dir unchanged, crossed
+         if (crossed)                                       // after a reflection: unchanged
+             r = x.entering ? kdrt_media_enter(&stack, obj, ior[obj], priority[obj])
+                            : kdrt_media_leave(&stack, obj);
+         if (r != KDRT_SUCCESS) ...                         // e.g. a full stack: end the path
+
    LICENSE
      MIT No Attribution, see the end of this file.
 */
@@ -149,7 +195,10 @@ typedef enum kdrt_result {
     KDRT_ERROR_INDEX_OUT_OF_RANGE, /* a triangle refers to a vertex at or past vertex_count */
     KDRT_ERROR_NON_FINITE_VERTEX,  /* a triangle has a NaN or infinite coordinate */
     KDRT_ERROR_SIZE_OVERFLOW,      /* a count or byte size beyond what can be addressed */
-    KDRT_ERROR_OUT_OF_MEMORY       /* the allocator returned NULL */
+    KDRT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
+    KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY media entered */
+    KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
+    KDRT_ERROR_INVALID_IOR         /* an index of refraction that is NaN, infinite, 0 or negative */
 } kdrt_result;
 
 typedef struct kdrt_aabb {
@@ -301,6 +350,80 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
 KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
                             kdrt_ray *out);
 
+/* ---- Optics (see OPTICS): reflection, refraction and Fresnel reflectance ---- */
+
+/* The mirror direction of incident about the plane with this normal, as a unit vector. Neither
+   vector needs unit length; the normal may face either way. A NaN or infinite component or an
+   all-zero vector gives out = incident. out may be incident itself. */
+KDRT_API void kdrt_reflect(const float incident[3], const float normal[3], float out[3]);
+/* Snell's law, eta = eta_incident / eta_transmitted. Returns 1 with the refracted unit direction
+   in out; 0 on total internal reflection, with out = kdrt_reflect()'s mirror direction; -1 on
+   invalid input (a NaN or infinite component, an all-zero vector, eta not finite and > 0), with
+   out = incident (and nothing written if a pointer is NULL). out may be incident itself. */
+KDRT_API int kdrt_refract(const float incident[3], const float normal[3], float eta, float out[3]);
+/* Exact Fresnel reflectance of a smooth dielectric surface for unpolarised light, the mean of the
+   s and p reflectances; 1 on total internal reflection. cos_i is the cosine of the angle of
+   incidence (see OPTICS); its magnitude is used, at most 1. eta = 1 gives 0 (no surface), and so
+   does invalid input (NaN cos_i, eta not finite and > 0). */
+KDRT_API float kdrt_fresnel_dielectric(float cos_i, float eta);
+/* The s- and p-polarised reflectances behind kdrt_fresnel_dielectric(); either pointer may be
+   NULL. rp is 0 at Brewster's angle, tan(theta_i) = 1 / eta. */
+KDRT_API void kdrt_fresnel_dielectric_sp(float cos_i, float eta, float *rs, float *rp);
+/* Schlick's approximation R0 + (1 - R0) (1 - cos)^5, R0 = ((eta - 1) / (eta + 1))^2, with cos the
+   cosine on the less dense side (cos_t when eta > 1; 1 on total internal reflection). Cheaper,
+   and off by up to 0.036 for glass (eta 1.5 or 1/1.5, worst about 85 degrees from air, 42 from
+   glass) and 0.060 for water (1.333): measured by tests/test_optics.cpp. Same inputs and special
+   cases as kdrt_fresnel_dielectric(). */
+KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta);
+
+/* The medium stack (see OPTICS). Define KDRT_MEDIA_STACK_CAPACITY the same in every file. */
+#ifndef KDRT_MEDIA_STACK_CAPACITY
+#define KDRT_MEDIA_STACK_CAPACITY 16
+#endif
+
+typedef struct kdrt_medium {
+    uint32_t object; /* the caller's id of the object whose inside this is; KDRT_INVALID_ID would
+                        read as "outside" in kdrt_media_current_object() */
+    float ior;       /* its index of refraction */
+    int priority;    /* higher wins where media overlap; all equal: the original's plain stack */
+} kdrt_medium;
+
+/* Plain data: copy it to branch a path. Set it up with kdrt_media_init(). */
+typedef struct kdrt_media_stack {
+    kdrt_medium media[KDRT_MEDIA_STACK_CAPACITY]; /* in the order entered */
+    uint32_t count;
+    float outside_ior; /* the medium outside every object: air, 1.000293, or 1 */
+} kdrt_media_stack;
+
+/* What happens where a ray meets a surface of an object, from kdrt_media_at_surface(). */
+typedef struct kdrt_media_crossing {
+    int entering;          /* 1: the object is not in the stack and the ray enters it; 0: it leaves */
+    int real;              /* 0: a false surface, which changes no medium: ignore it (see OPTICS) */
+    float eta_incident;    /* index of the current medium */
+    float eta_transmitted; /* index beyond the surface; eta_incident when the surface is false */
+} kdrt_media_crossing;
+
+/* An empty stack in a medium of index outside_ior. Invalid outside_ior: KDRT_ERROR_INVALID_IOR,
+   and the stack is still set up, with index 1. */
+KDRT_API kdrt_result kdrt_media_init(kdrt_media_stack *stack, float outside_ior);
+/* Index of the current medium: the entered one of highest priority, ties to the latest entered,
+   or outside_ior. A NULL stack is an empty one with outside index 1. */
+KDRT_API float kdrt_media_current_ior(const kdrt_media_stack *stack);
+/* Object of the current medium, or KDRT_INVALID_ID outside every object (or for NULL). */
+KDRT_API uint32_t kdrt_media_current_object(const kdrt_media_stack *stack);
+KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object);
+/* Pushes object. KDRT_ERROR_MEDIA_STACK_FULL, KDRT_ERROR_INVALID_IOR or
+   KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. An object entered twice is held twice. */
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority);
+/* Removes object's latest entry wherever it is (media may overlap); the others keep their order.
+   KDRT_ERROR_NOT_IN_MEDIUM or KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. */
+KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object);
+/* Classifies a surface of object hit by a ray with this stack. ior and priority are the
+   object's, used when the ray enters it (when it leaves, the stack's entry counts). Changes
+   nothing. A NULL stack is an empty one with outside index 1. */
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
+                                                   int priority);
+
 #ifdef __cplusplus
 }
 #endif
@@ -310,7 +433,7 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
 #if defined(KDRT_IMPLEMENTATION) && !defined(KDRT__IMPLEMENTED)
 #define KDRT__IMPLEMENTED
 
-#include <math.h>   /* INFINITY, sqrt */
+#include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
 #include <string.h>
 
@@ -484,6 +607,9 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
     case KDRT_ERROR_NON_FINITE_VERTEX: return "a triangle has a NaN or infinite coordinate";
     case KDRT_ERROR_SIZE_OVERFLOW: return "a count or byte size is too large to address";
     case KDRT_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case KDRT_ERROR_MEDIA_STACK_FULL: return "the medium stack is full (KDRT_MEDIA_STACK_CAPACITY)";
+    case KDRT_ERROR_NOT_IN_MEDIUM: return "leaving an object the medium stack does not hold";
+    case KDRT_ERROR_INVALID_IOR: return "an index of refraction is NaN, infinite, zero or negative";
     }
     return "unknown kdrt_result";
 }
@@ -1468,6 +1594,237 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
     out->tmin = 0.0f;
     out->tmax = INFINITY;
     return 1;
+}
+
+
+/* ---- optics: reflection, refraction, Fresnel, the medium stack ---- */
+
+static int kdrt__finite_positive(float x) { return x > 0.0f && kdrt__finite(x); }
+
+/* v in double; 0 when a component is NaN or infinite or all three are zero. */
+static int kdrt__load_direction(const float v[3], double d[3])
+{
+    d[0] = v[0], d[1] = v[1], d[2] = v[2];
+    return kdrt__finite(v[0]) && kdrt__finite(v[1]) && kdrt__finite(v[2]) &&
+           (v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f);
+}
+
+static double kdrt__dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void kdrt__cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* cos^2 of the transmitted angle, 1 - eta^2 (1 - cos_i^2), for the Fresnel functions' float
+   cosine; negative on total internal reflection. A float eta and a float cosine square exactly
+   in double, and 1 - eta^2 is exact for 1 <= eta < 2^23 (below 1 there is no total internal
+   reflection to decide), so with one fma the sign is exact. */
+static double kdrt__cos2_t(double eta, double cos_i) { return fma(eta * eta, cos_i * cos_i, 1.0 - eta * eta); }
+
+/* The unit mirror direction of i about the plane with normal n, from d = i.n, li = |i|,
+   nn = |n|^2. The double intermediates cannot overflow, and the float result is a unit vector. */
+static void kdrt__mirror(const double i[3], const double n[3], double d, double li, double nn, float out[3])
+{
+    double s = 2.0 * d / nn;
+    int a;
+    for (a = 0; a < 3; ++a) out[a] = (float)((i[a] - s * n[a]) / li);
+}
+
+KDRT_API void kdrt_reflect(const float incident[3], const float normal[3], float out[3])
+{
+    double i[3], n[3];
+    int a;
+    if (!incident || !normal || !out) return;
+    if (!kdrt__load_direction(incident, i) || !kdrt__load_direction(normal, n)) {
+        for (a = 0; a < 3; ++a) out[a] = incident[a];
+        return;
+    }
+    kdrt__mirror(i, n, kdrt__dot(i, n), sqrt(kdrt__dot(i, i)), kdrt__dot(n, n), out);
+}
+
+KDRT_API int kdrt_refract(const float incident[3], const float normal[3], float eta, float out[3])
+{
+    double i[3], n[3], w[3], t[3], d, ii, nn, li, k, e = eta;
+    int a;
+    if (!incident || !normal || !out) return -1;
+    if (!kdrt__load_direction(incident, i) || !kdrt__load_direction(normal, n) || !kdrt__finite_positive(eta)) {
+        for (a = 0; a < 3; ++a) out[a] = incident[a];
+        return -1;
+    }
+    d = kdrt__dot(i, n), ii = kdrt__dot(i, i), nn = kdrt__dot(n, n), li = sqrt(ii);
+    if (d > 0.0) { /* make the normal face the side the light comes from */
+        for (a = 0; a < 3; ++a) n[a] = -n[a];
+        d = -d;
+    }
+    /* w = n x i, |w| = |n| |i| sin(theta_i). Each component is one rounding of a difference of
+       exact products, so w is accurate even for nearly parallel i and n. k = |i|^2 |n|^2
+       cos^2(theta_t) = |i|^2 |n|^2 - eta^2 |w|^2, rounded once: negative is total internal
+       reflection, and an exactly critical angle with exact inputs gives exactly 0. */
+    kdrt__cross(n, i, w);
+    k = fma(-e * e, kdrt__dot(w, w), ii * nn);
+    if (k < 0.0) {
+        kdrt__mirror(i, n, d, li, nn, out);
+        return 0;
+    }
+    /* Snell: the tangential part of the unit incident direction, (w x n) / (|i| |n|^2), scaled by
+       eta, plus the normal part -cos_t n / |n|. w x n is accurate to about a double ulp of its
+       length, |i| |n|^2 sin(theta_i), and eta sin(theta_i) <= 1 here, so even a huge eta keeps the
+       result a unit vector. */
+    kdrt__cross(w, n, t);
+    for (a = 0; a < 3; ++a) out[a] = (float)(e * t[a] / (li * nn) - sqrt(k) / (li * nn) * n[a]);
+    return 1;
+}
+
+/* s and p reflectances; both 0 for invalid input and for eta = 1, both 1 on total internal
+   reflection. */
+static void kdrt__fresnel(float cos_i, float eta, double *rs, double *rp)
+{
+    double c = fabs((double)cos_i), e = eta, k, cos_t, s, p;
+    *rs = *rp = 0.0;
+    if (cos_i != cos_i || !kdrt__finite_positive(eta) || eta == 1.0f) return;
+    if (c > 1.0) c = 1.0;
+    k = kdrt__cos2_t(e, c);
+    if (k < 0.0) {
+        *rs = *rp = 1.0;
+        return;
+    }
+    /* The denominators are 0 only for c = cos_t = 0, which needs eta = 1. */
+    cos_t = sqrt(k);
+    s = (e * c - cos_t) / (e * c + cos_t);
+    p = (c - e * cos_t) / (c + e * cos_t);
+    *rs = s * s, *rp = p * p;
+}
+
+KDRT_API float kdrt_fresnel_dielectric(float cos_i, float eta)
+{
+    double rs, rp;
+    kdrt__fresnel(cos_i, eta, &rs, &rp);
+    return (float)(0.5 * (rs + rp));
+}
+
+KDRT_API void kdrt_fresnel_dielectric_sp(float cos_i, float eta, float *rs, float *rp)
+{
+    double s, p;
+    kdrt__fresnel(cos_i, eta, &s, &p);
+    if (rs) *rs = (float)s;
+    if (rp) *rp = (float)p;
+}
+
+KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta)
+{
+    double c = fabs((double)cos_i), e = eta, r0 = (e - 1.0) / (e + 1.0), m;
+    if (cos_i != cos_i || !kdrt__finite_positive(eta) || eta == 1.0f) return 0.0f;
+    if (c > 1.0) c = 1.0;
+    if (e > 1.0) { /* Schlick's formula takes the angle on the less dense side */
+        double k = kdrt__cos2_t(e, c);
+        if (k < 0.0) return 1.0f;
+        c = sqrt(k);
+    }
+    r0 *= r0, m = 1.0 - c;
+    return (float)(r0 + (1.0 - r0) * m * m * m * m * m);
+}
+
+typedef char kdrt__media_stack_has_room[KDRT_MEDIA_STACK_CAPACITY >= 1 ? 1 : -1];
+
+/* Entries to read: count, but never past the array, whatever the caller wrote into count. */
+static uint32_t kdrt__media_count(const kdrt_media_stack *s)
+{
+    return s->count < KDRT_MEDIA_STACK_CAPACITY ? s->count : KDRT_MEDIA_STACK_CAPACITY;
+}
+
+/* Index of the current medium, the highest priority and latest entered, leaving out entry skip;
+   KDRT_INVALID_ID for the outside medium. */
+static uint32_t kdrt__media_current(const kdrt_media_stack *s, uint32_t skip)
+{
+    uint32_t i, best = KDRT_INVALID_ID, n = kdrt__media_count(s);
+    for (i = 0; i < n; ++i)
+        if (i != skip && (best == KDRT_INVALID_ID || s->media[i].priority >= s->media[best].priority)) best = i;
+    return best;
+}
+
+static float kdrt__media_ior(const kdrt_media_stack *s, uint32_t entry)
+{
+    return entry == KDRT_INVALID_ID ? s->outside_ior : s->media[entry].ior;
+}
+
+/* Index of object's latest entry, or KDRT_INVALID_ID. */
+static uint32_t kdrt__media_find(const kdrt_media_stack *s, uint32_t object)
+{
+    uint32_t i = kdrt__media_count(s);
+    while (i-- > 0)
+        if (s->media[i].object == object) return i;
+    return KDRT_INVALID_ID;
+}
+
+KDRT_API kdrt_result kdrt_media_init(kdrt_media_stack *stack, float outside_ior)
+{
+    if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
+    memset(stack, 0, sizeof *stack);
+    stack->outside_ior = kdrt__finite_positive(outside_ior) ? outside_ior : 1.0f;
+    return kdrt__finite_positive(outside_ior) ? KDRT_SUCCESS : KDRT_ERROR_INVALID_IOR;
+}
+
+KDRT_API float kdrt_media_current_ior(const kdrt_media_stack *stack)
+{
+    return stack ? kdrt__media_ior(stack, kdrt__media_current(stack, KDRT_INVALID_ID)) : 1.0f;
+}
+
+KDRT_API uint32_t kdrt_media_current_object(const kdrt_media_stack *stack)
+{
+    uint32_t entry = stack ? kdrt__media_current(stack, KDRT_INVALID_ID) : KDRT_INVALID_ID;
+    return entry == KDRT_INVALID_ID ? KDRT_INVALID_ID : stack->media[entry].object;
+}
+
+KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object)
+{
+    return stack && kdrt__media_find(stack, object) != KDRT_INVALID_ID;
+}
+
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority)
+{
+    kdrt_medium *m;
+    if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
+    if (!kdrt__finite_positive(ior)) return KDRT_ERROR_INVALID_IOR;
+    if (stack->count >= KDRT_MEDIA_STACK_CAPACITY) return KDRT_ERROR_MEDIA_STACK_FULL;
+    m = &stack->media[stack->count++];
+    m->object = object, m->ior = ior, m->priority = priority;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object)
+{
+    uint32_t i, n;
+    if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
+    i = kdrt__media_find(stack, object), n = kdrt__media_count(stack);
+    if (i == KDRT_INVALID_ID) return KDRT_ERROR_NOT_IN_MEDIUM;
+    for (; i + 1 < n; ++i) stack->media[i] = stack->media[i + 1];
+    stack->count = n - 1;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
+                                                   int priority)
+{
+    kdrt_media_stack empty;
+    kdrt_media_crossing x;
+    uint32_t current, entry;
+    if (!stack) kdrt_media_init(&empty, 1.0f), stack = &empty;
+    current = kdrt__media_current(stack, KDRT_INVALID_ID);
+    entry = kdrt__media_find(stack, object);
+    x.entering = entry == KDRT_INVALID_ID;
+    x.eta_incident = kdrt__media_ior(stack, current);
+    if (x.entering) /* the object becomes current unless a higher priority medium holds the ray */
+        x.real = current == KDRT_INVALID_ID || priority >= stack->media[current].priority;
+    else /* leaving: only the current medium's surface changes anything */
+        x.real = entry == current;
+    if (!x.real)
+        x.eta_transmitted = x.eta_incident;
+    else
+        x.eta_transmitted = x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
+    return x;
 }
 
 #ifdef __cplusplus

@@ -1,5 +1,5 @@
 /* The header with its implementation as strict C99 (-std=c99 -Wall -Wextra -pedantic -Werror):
-   a tiny tree, one hit, one miss, kdrt_result_string. */
+   a tiny tree, one hit, one miss, kdrt_result_string, one refraction and the medium stack. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -30,6 +30,10 @@ int main(void)
     kdrt_ray beside = {{1.5f, 0.5f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
     kdrt_hit hit;
     kdrt_result r;
+    const float from_above[3] = {0.6f, 0.0f, -0.8f}, up[3] = {0.0f, 0.0f, 1.0f};
+    float refracted[3];
+    kdrt_media_stack media;
+    kdrt_media_crossing crossing;
 
     mesh.positions = vertices;
     mesh.vertex_count = 4;
@@ -54,6 +58,18 @@ int main(void)
           "kdrt_result_string(KDRT_ERROR_OUT_OF_MEMORY)");
     check(kdrt_tree_build(NULL, &options, &tree, NULL) == KDRT_ERROR_NULL_ARGUMENT && tree == NULL,
           "NULL mesh is KDRT_ERROR_NULL_ARGUMENT");
+
+    /* Into glass from air: sin(theta_t) = 0.6 / 1.5 = 0.4. */
+    check(kdrt_refract(from_above, up, 1.0f / 1.5f, refracted) == 1, "refract");
+    check(fabs(refracted[0] - 0.4) < 1e-6 && refracted[2] < 0.0f, "refract: sin(theta_t) = 0.4");
+    check(kdrt_fresnel_dielectric(1.0f, 1.5f) > 0.0399f && kdrt_fresnel_dielectric(1.0f, 1.5f) < 0.0401f,
+          "Fresnel: 0.04 at normal incidence");
+    check(kdrt_media_init(&media, 1.0f) == KDRT_SUCCESS, "media: init");
+    crossing = kdrt_media_at_surface(&media, 7, 1.5f, 0);
+    check(crossing.entering && crossing.real && crossing.eta_transmitted == 1.5f, "media: entering glass");
+    check(kdrt_media_enter(&media, 7, 1.5f, 0) == KDRT_SUCCESS && kdrt_media_current_ior(&media) == 1.5f,
+          "media: in glass");
+    check(kdrt_media_leave(&media, 8) == KDRT_ERROR_NOT_IN_MEDIUM, "media: leaving what was not entered");
 
     if (failures) return 1;
     printf("smoke_c99: ok (kdrt %s)\n", KDRT_VERSION_STRING);

@@ -1,6 +1,6 @@
 // The header with its implementation as strict C++11 (-std=c++11 -Wall -Wextra -pedantic
 // -Werror), every function static (KDRT_STATIC): a tiny tree, one hit, one miss,
-// kdrt_result_string.
+// kdrt_result_string, one refraction and the medium stack.
 #define KDRT_STATIC
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
@@ -56,6 +56,17 @@ int main()
     check(std::strcmp(kdrt_result_string(KDRT_SUCCESS), "success") == 0, "kdrt_result_string(KDRT_SUCCESS)");
     check(std::strcmp(kdrt_result_string(KDRT_ERROR_INVALID_STRIDE), kdrt_result_string(KDRT_SUCCESS)) != 0,
           "kdrt_result_string tells errors apart");
+
+    // Into glass from air: sin(theta_t) = 0.6 / 1.5 = 0.4.
+    const float from_above[3] = {0.6f, 0.0f, -0.8f}, up[3] = {0.0f, 0.0f, 1.0f};
+    float refracted[3];
+    check(kdrt_refract(from_above, up, 1.0f / 1.5f, refracted) == 1, "refract");
+    check(std::fabs(refracted[0] - 0.4f) < 1e-6f && refracted[2] < 0.0f, "refract: sin(theta_t) = 0.4");
+    kdrt_media_stack media;
+    check(kdrt_media_init(&media, 1.0f) == KDRT_SUCCESS, "media: init");
+    check(kdrt_media_enter(&media, 7, 1.5f, 0) == KDRT_SUCCESS && kdrt_media_current_ior(&media) == 1.5f,
+          "media: in glass");
+    check(kdrt_media_leave(&media, 8) == KDRT_ERROR_NOT_IN_MEDIUM, "media: leaving what was not entered");
 
     if (failures) return 1;
     std::printf("smoke_cpp11: ok (kdrt %s)\n", KDRT_VERSION_STRING);
