@@ -149,6 +149,7 @@
              r = x.entering ? kdrt_media_enter(&stack, obj, ior[obj], priority[obj])
                             : kdrt_media_leave(&stack, obj);
          if (r != KDRT_SUCCESS) ...                         // e.g. a full stack: end the path
+         kdrt_spawn_ray(tree, &hit, dir, &ray);             // the next ray, off the surface
 
    LICENSE
      MIT No Attribution, see the end of this file.
