@@ -9,7 +9,6 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
-#include <mutex>
 #include <set>
 #include <unordered_map>
 
@@ -482,9 +481,12 @@ HardSet axis_parallel_set(size_t count, Rng &rng) {
     return set;
 }
 
-HardSet parallel_to_face_set(size_t count, Rng &rng) {
-    HardSet set{"parallel_to_face", {}, {}};
-    set.mesh.name = "integer_triangles";
+// Integer triangles and rays exactly parallel to them: lying in their plane (in_plane) or lifted
+// off it by a small multiple of the normal (parallel_to_face). In-plane rays touch the triangle
+// along a segment or not at all; the oracle (det == 0) and kdrt.h's det == 0 test call that a miss.
+void parallel_sets(size_t count, Rng &rng, HardSet &in_plane, HardSet &parallel) {
+    in_plane = HardSet{"in_plane", {}, {}};
+    in_plane.mesh.name = "integer_triangles";
     const int triangles = 48;
     std::vector<std::array<double, 9>> tris;
     while (int(tris.size()) < triangles) {
@@ -495,35 +497,30 @@ HardSet parallel_to_face_set(size_t count, Rng &rng) {
         for (int a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a];
         cross(e1, e2, n);
         if (norm(n) == 0) continue;
-        add_triangle(set.mesh, p);
+        add_triangle(in_plane.mesh, p);
         tris.push_back({p[0][0], p[0][1], p[0][2], e1[0], e1[1], e1[2], e2[0], e2[1], e2[2]});
     }
-    for (size_t i = 0; set.rays.size() < count; ++i) {
+    parallel = HardSet{"parallel_to_face", in_plane.mesh, {}};
+    for (size_t i = 0; in_plane.rays.size() < count || parallel.rays.size() < count; ++i) {
         const auto &t = tris[rng.below(triangles)];
         const double *p0 = &t[0], *e1 = &t[3], *e2 = &t[6];
         double n[3];
         cross(e1, e2, n);
-        // An exact in-plane direction: an edge, or a small integer combination of the edges.
+        // An exact in-plane direction: a small integer combination of the edges.
         double ka = double(int(rng.below(5)) - 2), kb = double(int(rng.below(5)) - 2);
         if (ka == 0 && kb == 0) ka = 1;
         double d[3], o[3];
         for (int a = 0; a < 3; ++a) d[a] = ka * e1[a] + kb * e2[a];
-        // Start: a point of the plane (a quarter-lattice point, exact) well behind the triangle
-        // along d, or inside it; then in the plane or off it by a tiny multiple of the normal.
-        double u = double(rng.below(5)) / 4, v = double(rng.below(5)) / 4;
-        if (u + v > 1) u = 1 - u, v = 1 - v;
+        // Through a quarter-lattice point of the plane (exact) inside the triangle or beside it,
+        // starting there or two steps of d before it.
+        double u = double(rng.below(6)) / 4 - 0.25, v = double(rng.below(6)) / 4 - 0.25;
         double back = (i % 3 == 0) ? 0 : 2;
-        double lift = 0;
-        switch (i % 4) {
-        case 0: lift = 0; break;
-        case 1: lift = 0x1p-20; break;
-        case 2: lift = -0x1p-12; break;
-        default: lift = 1.0 / 64; break;
-        }
+        const double lifts[] = {0x1p-20, -0x1p-20, -0x1p-12, 1.0 / 64};
+        double lift = i % 2 ? 0 : lifts[(i / 2) % 4];
         for (int a = 0; a < 3; ++a) o[a] = p0[a] + u * e1[a] + v * e2[a] - back * d[a] + lift * n[a];
-        set.rays.push_back(make_ray(o, d));
+        HardSet &set = lift == 0 ? in_plane : parallel;
+        if (set.rays.size() < count) set.rays.push_back(make_ray(o, d));
     }
-    return set;
 }
 
 HardSet grazing_skinny_set(size_t count, Rng &rng) {
@@ -805,7 +802,10 @@ std::vector<HardSet> hard_sets(size_t rays_per_set, uint64_t seed) {
     sets.push_back(split_plane_set("split_planes_grid", height_grid(16, 16, rng), rays_per_set, rng));
     sets.push_back(split_plane_set("split_planes_soup", soup(400, 10, 1, rng), rays_per_set, rng));
     sets.push_back(axis_parallel_set(rays_per_set, rng));
-    sets.push_back(parallel_to_face_set(rays_per_set, rng));
+    HardSet in_plane, parallel;
+    parallel_sets(rays_per_set, rng, in_plane, parallel);
+    sets.push_back(std::move(parallel));
+    sets.push_back(std::move(in_plane));
     sets.push_back(grazing_skinny_set(rays_per_set, rng));
     sets.push_back(needles_tiny_set(rays_per_set, rng));
     sets.push_back(coplanar_overlap_set(rays_per_set, rng));
@@ -849,12 +849,10 @@ ErrorCounts count_leaks(const kdrt_tree *tree, const std::vector<kdrt_ray> &must
     return counts;
 }
 
-ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn) {
+std::vector<SpawnedRay> spawn_rays(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn) {
     const int per_hit = 4;
-    std::vector<unsigned char> spawned(rays.size()), self(rays.size());
-    std::atomic<size_t> first{SIZE_MAX};
-    std::string first_text;
-    std::mutex mutex;
+    std::vector<SpawnedRay> slots(rays.size() * per_hit);
+    std::vector<unsigned char> used(slots.size(), 0);
     kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) {
         kdrt_hit h;
         if (!kdrt_intersect(tree, &rays[i], &h)) return;
@@ -866,36 +864,40 @@ ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &
         for (int a = 0; a < 3; ++a) dirs[1][a] = d[a];
         grazing(d, normal, 0.5, 1, dirs[2]);
         grazing(d, normal, 0.5, -1, dirs[3]);
-        for (const auto &dd : dirs) {
-            const float df[3] = {float(dd[0]), float(dd[1]), float(dd[2])};
-            kdrt_ray r;
+        for (int k = 0; k < per_hit; ++k) {
+            const float df[3] = {float(dirs[k][0]), float(dirs[k][1]), float(dirs[k][2])};
+            SpawnedRay &s = slots[i * per_hit + k];
             if (spawn == Spawn::kdrt) {
-                if (!kdrt_spawn_ray(tree, &h, df, &r)) continue;
+                if (!kdrt_spawn_ray(tree, &h, df, &s.ray)) continue;
             } else {
-                for (int a = 0; a < 3; ++a) r.org[a] = rays[i].org[a] + h.t * rays[i].dir[a], r.dir[a] = df[a];
-                r.tmin = 0, r.tmax = kInf;
+                for (int a = 0; a < 3; ++a) s.ray.org[a] = rays[i].org[a] + h.t * rays[i].dir[a], s.ray.dir[a] = df[a];
+                s.ray.tmin = 0, s.ray.tmax = kInf;
             }
-            ++spawned[i];
-            kdrt_hit again;
-            if (kdrt_intersect(tree, &r, &again) && again.triangle == h.triangle) {
-                ++self[i];
-                size_t cur = first.load();
-                if (i < cur) {
-                    std::lock_guard<std::mutex> lock(mutex);
-                    if (i < first.load()) {
-                        first = i;
-                        char buf[160];
-                        std::snprintf(buf, sizeof buf, " hit triangle %u at t=%.9g; spawned ray ", h.triangle, h.t);
-                        first_text = "ray " + std::to_string(i) + " " + describe(rays[i]) + buf + describe(r) +
-                                    " hits it again at t=" + std::to_string(again.t);
-                    }
-                }
-            }
+            s.from = h.triangle, s.primary = i;
+            used[i * per_hit + k] = 1;
         }
     });
+    std::vector<SpawnedRay> out;
+    for (size_t j = 0; j < slots.size(); ++j)
+        if (used[j]) out.push_back(slots[j]);
+    return out;
+}
+
+ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn) {
+    const std::vector<SpawnedRay> spawned = spawn_rays(tree, rays, spawn);
+    std::vector<kdrt_hit> hits(spawned.size());
+    kb::timed_parallel(spawned.size(), kb::all_cores(), [&](size_t j) { kdrt_intersect(tree, &spawned[j].ray, &hits[j]); });
     ErrorCounts counts;
-    for (size_t i = 0; i < rays.size(); ++i) counts.rays += spawned[i], counts.self_hits += self[i];
-    if (counts.self_hits) counts.first = first_text;
+    counts.rays = spawned.size();
+    for (size_t j = 0; j < spawned.size(); ++j) {
+        if (hits[j].triangle != spawned[j].from) continue;
+        if (counts.self_hits++ == 0) {
+            char buf[160];
+            std::snprintf(buf, sizeof buf, " hits triangle %u; spawned ray ", spawned[j].from);
+            counts.first = "ray " + std::to_string(spawned[j].primary) + " " + describe(rays[spawned[j].primary]) + buf +
+                           describe(spawned[j].ray) + " hits it again at t=" + std::to_string(hits[j].t);
+        }
+    }
     return counts;
 }
 

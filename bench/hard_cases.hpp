@@ -41,8 +41,10 @@ std::vector<kdrt_ray> rays_at_vertices_and_edges(const Mesh &closed, size_t coun
 // builder can split at, i.e. every triangle centroid coordinate, and in every vertex coordinate
 // plane, with +0 and -0 across it, and rays crossing those planes from a point on them),
 // "axis_parallel" (axis-aligned rays with +-0 components on lattices through a grid's vertices and
-// edges and over a sphere), "parallel_to_face" (rays exactly parallel to integer triangles, in
-// their plane and just off it), "grazing_skinny" (rays 0.1 to 1 degree off the plane of skinny
+// edges and over a sphere), "parallel_to_face" (rays exactly parallel to integer triangles, lifted
+// 2^-20 to 1/64 of the normal off their plane), "in_plane" (the same, lying exactly in the plane:
+// they touch the triangle along a segment or not at all, and the oracle, det == 0, calls both a
+// miss), "grazing_skinny" (rays 0.1 to 1 degree off the plane of skinny
 // triangles, aimed inside them and at their edges), "needles_tiny" (needle triangles and
 // triangles down to 1e-6 across), "coplanar_overlap" (stacks of coplanar overlapping triangles,
 // including the same triangle with rotated and reversed corners). Every answer is to be checked
@@ -77,10 +79,18 @@ ErrorCounts count_leaks(const kdrt_tree *tree, const std::vector<kdrt_ray> &must
 // naive org + t * dir with no offset (the comparison that shows self-hits are real).
 enum class Spawn { kdrt, naive };
 
-// Self-hits: for every ray that hits, spawn four rays from the hit: reflected, continuing through
-// the surface, and two grazing ones leaving at 0.5 degrees to the surface on either side. Count
-// those whose nearest hit is the triangle they leave (a plane is met once, so any such hit is a
-// self-hit). Fills rays (spawned rays) and self_hits. Runs on all cores.
+// Secondary rays: for every ray that hits, four rays from the hit: reflected, continuing through
+// the surface, and two grazing ones leaving at 0.5 degrees to the surface on either side; in the
+// order of the rays they come from. `from` is the triangle they leave, `primary` the ray's index.
+struct SpawnedRay {
+    kdrt_ray ray;
+    uint32_t from;
+    size_t primary;
+};
+std::vector<SpawnedRay> spawn_rays(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn = Spawn::kdrt);
+
+// Self-hits: the spawn_rays() whose nearest hit is the triangle they leave (a plane is met once,
+// so any such hit is a self-hit). Fills rays (spawned rays) and self_hits. Runs on all cores.
 ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn = Spawn::kdrt);
 
 // Oracle disagreements: traces every ray, checks it with check_hit against refs (from
