@@ -244,33 +244,25 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
         }
     if (kind == RayKind::primary) return rays;
 
-    // Diffuse: a cosine-distributed bounce from every primary hit, on the side the ray came from.
-    // The origin is lifted off the surface along the normal by a small multiple of the scene's
-    // size (the accuracy issue brings a proper spawning helper).
+    // Diffuse: a cosine-distributed bounce from every primary hit, on the side the ray came from,
+    // leaving the surface through kdrt_spawn_ray() (no epsilon: the offset scales with the point).
     std::vector<kdrt_ray> bounces;
     Rng rng(seed);
     for (const kdrt_ray &r : rays) {
         kdrt_hit h;
-        if (!kdrt_intersect(tree, &r, &h)) continue;
-        double p[3][3], n[3], e1[3], e2[3], hit[3];
-        scene.geometry.corners(h.triangle, p);
-        for (int a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a];
-        n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2], n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (!(len > 0)) continue;
+        float normal[3];
+        if (!kdrt_intersect(tree, &r, &h) || !kdrt_hit_surface(tree, &h, nullptr, normal)) continue;
+        double n[3] = {normal[0], normal[1], normal[2]};
         double facing = n[0] * r.dir[0] + n[1] * r.dir[1] + n[2] * r.dir[2] > 0 ? -1 : 1;
-        for (int a = 0; a < 3; ++a) n[a] *= facing / len, hit[a] = (1 - h.u - h.v) * p[0][a] + h.u * p[1][a] + h.v * p[2][a];
+        for (double &c : n) c *= facing;
         // Orthonormal frame around n (Duff et al. 2017), then a cosine-weighted direction.
         double sign = std::copysign(1.0, n[2]), a0 = -1.0 / (sign + n[2]), b0 = n[0] * n[1] * a0;
         double t1[3] = {1 + sign * n[0] * n[0] * a0, sign * b0, -sign * n[0]}, t2[3] = {b0, sign + n[1] * n[1] * a0, -n[1]};
         double r1 = rng.uniform(), r2 = rng.uniform(), radial = std::sqrt(r1), phi = 2 * M_PI * r2, up = std::sqrt(1 - r1);
+        float dir[3];
+        for (int a = 0; a < 3; ++a) dir[a] = float(radial * std::cos(phi) * t1[a] + radial * std::sin(phi) * t2[a] + up * n[a]);
         kdrt_ray b;
-        for (int a = 0; a < 3; ++a) {
-            b.dir[a] = float(radial * std::cos(phi) * t1[a] + radial * std::sin(phi) * t2[a] + up * n[a]);
-            b.org[a] = float(hit[a] + n[a] * 1e-4);
-        }
-        b.tmin = 0, b.tmax = INFINITY;
-        bounces.push_back(b);
+        if (kdrt_spawn_ray(tree, &h, dir, &b)) bounces.push_back(b);
     }
     return bounces;
 }
