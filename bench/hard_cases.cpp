@@ -763,7 +763,7 @@ std::vector<kdrt_ray> rays_at_vertices_and_edges(const Mesh &closed, size_t coun
     Rng rng(seed);
     const Geometry g(closed);
     const bool integer = is_integer_mesh(closed);
-    const auto inside = inside_points(closed, g, 64, rng);
+    const auto inside = inside_points(closed, g, 32, rng);
     if (inside.empty()) return rays;
     const Box box = box_of(closed);
     const double diag = box.diagonal();
