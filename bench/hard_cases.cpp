@@ -442,7 +442,11 @@ HardSet split_plane_set(const std::string &name, const Mesh &mesh, size_t count,
     return set;
 }
 
+// Axis-parallel rays on a lattice over the box (both directions of every axis, every +-0
+// combination of the other two components, starting outside the box and in its middle), at most
+// `limit` of them, drawn at random from the whole lattice.
 void add_axis_rays(std::vector<kdrt_ray> &rays, const Box &box, double step, double margin, double offset, size_t limit) {
+    std::vector<kdrt_ray> all;
     for (int a = 0; a < 3; ++a)
         for (float s : {1.0f, -1.0f})
             for (int zeros = 0; zeros < 4; ++zeros) {
@@ -450,15 +454,20 @@ void add_axis_rays(std::vector<kdrt_ray> &rays, const Box &box, double step, dou
                 for (double pb = box.lo[b] - margin + offset; pb <= box.hi[b] + margin; pb += step)
                     for (double pc = box.lo[c] - margin + offset; pc <= box.hi[c] + margin; pc += step)
                         for (int start = 0; start < 2; ++start) {
-                            if (rays.size() >= limit) return;
                             kdrt_ray r;
                             r.dir[a] = s, r.dir[b] = (zeros & 1) ? -0.0f : 0.0f, r.dir[c] = (zeros & 2) ? -0.0f : 0.0f;
                             r.org[b] = float(pb), r.org[c] = float(pc);
                             r.org[a] = float(start == 0 ? (s > 0 ? box.lo[a] - 1 : box.hi[a] + 1) : 0.5 * (box.lo[a] + box.hi[a]));
                             r.tmin = 0, r.tmax = kInf;
-                            rays.push_back(r);
+                            all.push_back(r);
                         }
             }
+    const size_t take = std::min(limit, all.size());
+    Rng rng(all.size());
+    for (size_t k = 0; k < take; ++k) {  // a partial Fisher-Yates shuffle
+        std::swap(all[k], all[k + rng.below(uint32_t(all.size() - k))]);
+        rays.push_back(all[k]);
+    }
 }
 
 HardSet axis_parallel_set(size_t count, Rng &rng) {

@@ -112,6 +112,12 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
     const size_t generated = kt::closed_meshes(false).size();
     REQUIRE(meshes.size() >= generated);
     if (meshes.size() == generated) WARN("no closed shared meshes (KDRT_MESH_DIR absent?): generated meshes only");
+    // Scaled-down runs (the sanitizer build) leave out the shared meshes over 20,000 triangles,
+    // whose builds and traversals would dominate them.
+    if (scale < 1)
+        meshes.erase(std::remove_if(meshes.begin() + std::ptrdiff_t(generated), meshes.end(),
+                                    [](const kt::Mesh &m) { return m.triangle_count() > 20000; }),
+                     meshes.end());
 
     std::ostringstream log;
     log << "rays at vertices and edges of " << meshes.size() << " closed meshes; leaks\n"
