@@ -1,4 +1,5 @@
 #include "bench.hpp"
+#include "timing.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -51,8 +52,19 @@ std::vector<uint32_t> leaf_sizes_for(const std::vector<uint32_t> &sizes, uint32_
     return kept;
 }
 
+const char *intersector_name(kdrt_intersector intersector) {
+    return intersector == KDRT_INTERSECTOR_FAST ? "fast" : "watertight";
+}
+
+std::vector<kdrt_intersector> intersectors_for(const Options &opt) {
+    if (!opt.intersectors.empty()) return opt.intersectors;
+    if (opt.accuracy) return {KDRT_INTERSECTOR_FAST, KDRT_INTERSECTOR_WATERTIGHT};
+    return {KDRT_INTERSECTOR_WATERTIGHT};
+}
+
 std::string usage() {
     return "usage: kdrt-bench [options] [MESH_OR_FOLDER ...]\n"
+           "       kdrt-bench --accuracy [options] [MESH_OR_FOLDER ...]\n"
            "\n"
            "Builds a kd-tree over each mesh for each max leaf size and traces the benchmark frame:\n"
            "the mesh scaled to fill the view in front of a back wall, one primary ray per pixel,\n"
@@ -60,26 +72,50 @@ std::string usage() {
            "Meshes: OFF, OBJ, PLY, STL, glTF files, or folders of them. Default: the original's\n"
            "meshes in ../shared/meshes/seed when present, else generated ones.\n"
            "\n"
-           "  --size WxH          frame size (default 800x800)\n"
+           "  --size WxH          frame size (default 800x800; 400x400 with --accuracy)\n"
            "  --threads N         tracing threads (default 1)\n"
-           "  --repeat N          rows per mesh and leaf size (default 1)\n"
+           "  --repeat N          rows per mesh and leaf size (default 1); with --accuracy, timed\n"
+           "                      passes per set and intersector, in turns, the fastest kept\n"
+           "                      (default 3)\n"
            "  --leaf-sizes LIST   comma-separated max leaf sizes, 0 = no tree\n"
            "                      (default 0,1,2,3,4,6,8,12,...,768,1024; each mesh stops after the\n"
            "                      first size at or above its triangle count)\n"
            "  --builder NAME      median (the SAH builder is not available yet)\n"
-           "  --rays KIND         primary | diffuse (cosine bounces from the primary hits) |\n"
-           "                      random (uniform rays through the scene box)\n"
-           "  --reference-rays N  rays per frame checked against the double-precision brute-force\n"
-           "                      reference (default 20000, seeded; 0: every ray)\n"
+           "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
+           "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
+           "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"
+           "                      brute-force reference (default 20000, seeded; 0: every ray)\n"
            "  --subdivide K       K levels of 4-to-1 subdivision of every mesh first\n"
            "  --compare embree    also trace the same rays through Embree 3 (one thread)\n"
+           "  --intersector LIST  watertight (the default), fast (Moeller-Trumbore), or both\n"
+           "                      separated by a comma: a row for each, named in the last column\n"
+           "  --accuracy          speed beside error counts for each intersector (see below)\n"
+           "  --hard-rays N       with --accuracy: rays per watertight and per hard-case set\n"
+           "                      (default 20000)\n"
            "  -o FILE             write the CSV to FILE (default: standard output)\n"
-           "  --help              this text\n";
+           "  --help              this text\n"
+           "\n"
+           "--accuracy traces these ray sets with each intersector (default fast,watertight), each\n"
+           "through a tree of the default leaf size: every mesh's frame (frame-primary, and\n"
+           "frame-diffuse: bounces from the primary hits), the frame moved 1e3, 1e5 and 1e7 away\n"
+           "from the origin (far), rays at the vertices and edges of closed meshes (watertight), and\n"
+           "the hard-case sets (hard). It writes Set;Scene;Intersector;Triangles;Rays;TraceMs;\n"
+           "MRaysPerSec;Leaks;FalseHits;SelfHits;Mismatches;SpawnedRays;ReferenceRays, a row per\n"
+           "set and intersector and an 'oracle' row timing the reference itself, and a summary per\n"
+           "set on standard error. Leaks: must-hit rays that miss (watertight sets; all rays).\n"
+           "The other counts use a seeded sample of --reference-rays rays (ReferenceRays) per set:\n"
+           "FalseHits and Mismatches, answers the reference contradicts; SelfHits, secondary rays\n"
+           "kdrt_spawn_ray starts from the sample's hits (SpawnedRays: reflected, through and two\n"
+           "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
+           "for the same rays started exactly at the hit point, with no offset.\n"
+           "--leaf-sizes, --rays and --compare do not apply.\n";
 }
 
 bool parse_options(int argc, const char *const *argv, Options &out, std::string &error) {
     out = Options();
     out.leaf_sizes = default_leaf_sizes();
+    std::string csv_only_option;  // the last option that only the leaf-size CSV takes
+    bool hard_rays_given = false, repeat_given = false, size_given = false;
     for (int i = 1; i < argc; ++i) {
         std::string arg = argv[i];
         auto value = [&](std::string &v) {
@@ -92,8 +128,37 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         };
         std::string v;
         unsigned long long n = 0;
+        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare") csv_only_option = arg;
+        repeat_given = repeat_given || arg == "--repeat";
+        size_given = size_given || arg == "--size";
         if (arg == "--help" || arg == "-h") {
             out.help = true;
+        } else if (arg == "--accuracy") {
+            out.accuracy = true;
+        } else if (arg == "--intersector") {
+            if (!value(v)) return false;
+            out.intersectors.clear();
+            size_t start = 0;
+            while (true) {
+                size_t comma = v.find(',', start);
+                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+                if (item == "watertight") out.intersectors.push_back(KDRT_INTERSECTOR_WATERTIGHT);
+                else if (item == "fast") out.intersectors.push_back(KDRT_INTERSECTOR_FAST);
+                else {
+                    error = "--intersector wants watertight, fast or both separated by a comma, got '" + v + "'";
+                    return false;
+                }
+                if (comma == std::string::npos) break;
+                start = comma + 1;
+            }
+        } else if (arg == "--hard-rays") {
+            if (!value(v)) return false;
+            if (!parse_unsigned(v, 1ull << 32, n) || n == 0) {
+                error = "--hard-rays wants a whole number from 1, got '" + v + "'";
+                return false;
+            }
+            out.hard_rays = size_t(n);
+            hard_rays_given = true;
         } else if (arg == "--size") {
             if (!value(v)) return false;
             size_t x = v.find('x');
@@ -172,6 +237,16 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.inputs.push_back(arg);
         }
     }
+    if (out.accuracy && !csv_only_option.empty()) {
+        error = csv_only_option + " does not apply to --accuracy (every set is traced once, median builder, default leaf size)";
+        return false;
+    }
+    if (out.accuracy && !repeat_given) out.repeat = 3;
+    if (out.accuracy && !size_given) out.width = out.height = 400;  // 30 frames: a few minutes in all
+    if (!out.accuracy && hard_rays_given) {
+        error = "--hard-rays applies only to --accuracy";
+        return false;
+    }
     return true;
 }
 
@@ -244,33 +319,25 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
         }
     if (kind == RayKind::primary) return rays;
 
-    // Diffuse: a cosine-distributed bounce from every primary hit, on the side the ray came from.
-    // The origin is lifted off the surface along the normal by a small multiple of the scene's
-    // size (the accuracy issue brings a proper spawning helper).
+    // Diffuse: a cosine-distributed bounce from every primary hit, on the side the ray came from,
+    // leaving the surface through kdrt_spawn_ray() (no epsilon: the offset scales with the point).
     std::vector<kdrt_ray> bounces;
     Rng rng(seed);
     for (const kdrt_ray &r : rays) {
         kdrt_hit h;
-        if (!kdrt_intersect(tree, &r, &h)) continue;
-        double p[3][3], n[3], e1[3], e2[3], hit[3];
-        scene.geometry.corners(h.triangle, p);
-        for (int a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a];
-        n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2], n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (!(len > 0)) continue;
+        float normal[3];
+        if (!kdrt_intersect(tree, &r, &h) || !kdrt_hit_surface(tree, &h, nullptr, normal)) continue;
+        double n[3] = {normal[0], normal[1], normal[2]};
         double facing = n[0] * r.dir[0] + n[1] * r.dir[1] + n[2] * r.dir[2] > 0 ? -1 : 1;
-        for (int a = 0; a < 3; ++a) n[a] *= facing / len, hit[a] = (1 - h.u - h.v) * p[0][a] + h.u * p[1][a] + h.v * p[2][a];
+        for (double &c : n) c *= facing;
         // Orthonormal frame around n (Duff et al. 2017), then a cosine-weighted direction.
         double sign = std::copysign(1.0, n[2]), a0 = -1.0 / (sign + n[2]), b0 = n[0] * n[1] * a0;
         double t1[3] = {1 + sign * n[0] * n[0] * a0, sign * b0, -sign * n[0]}, t2[3] = {b0, sign + n[1] * n[1] * a0, -n[1]};
         double r1 = rng.uniform(), r2 = rng.uniform(), radial = std::sqrt(r1), phi = 2 * M_PI * r2, up = std::sqrt(1 - r1);
+        float dir[3];
+        for (int a = 0; a < 3; ++a) dir[a] = float(radial * std::cos(phi) * t1[a] + radial * std::sin(phi) * t2[a] + up * n[a]);
         kdrt_ray b;
-        for (int a = 0; a < 3; ++a) {
-            b.dir[a] = float(radial * std::cos(phi) * t1[a] + radial * std::sin(phi) * t2[a] + up * n[a]);
-            b.org[a] = float(hit[a] + n[a] * 1e-4);
-        }
-        b.tmin = 0, b.tmax = INFINITY;
-        bounces.push_back(b);
+        if (kdrt_spawn_ray(tree, &h, dir, &b)) bounces.push_back(b);
     }
     return bounces;
 }
@@ -296,7 +363,7 @@ size_t count_mismatches(const kt::Oracle &oracle, const std::vector<kt::Referenc
 
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
-           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays";
+           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector";
 }
 
 std::string csv_row(const Row &row) {
@@ -314,9 +381,253 @@ std::string csv_row(const Row &row) {
     } else {
         line += ";;;;;";  // Embree's BVH: no kd-tree statistics
     }
-    n = std::snprintf(buf, sizeof buf, "%zu;%zu", row.mismatches, row.reference_rays);
+    n = std::snprintf(buf, sizeof buf, "%zu;%zu;", row.mismatches, row.reference_rays);
     line.append(buf, size_t(n));
-    return line;
+    return line + row.intersector;
+}
+
+// ---- kdrt-bench --accuracy ----
+
+namespace {
+
+kdrt_tree *build_tree(const kt::Mesh &mesh, kdrt_intersector intersector, std::string &error) {
+    const kdrt_triangles view = mesh.view();
+    kdrt_build_options options = kdrt_default_build_options();
+    options.intersector = intersector;
+    kdrt_tree *tree = nullptr;
+    kdrt_build_report report;
+    kdrt_result r = kdrt_tree_build(&view, &options, &tree, &report);
+    if (r != KDRT_SUCCESS) {
+        error = std::string(kdrt_result_string(r)) +
+                (report.invalid_triangle != KDRT_INVALID_ID ? " (triangle " + std::to_string(report.invalid_triangle) + ")" : "");
+        return nullptr;
+    }
+    return tree;
+}
+
+std::string offset_label(double offset) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0e", offset);  // 1e+05
+    std::string s = buf;
+    size_t plus = s.find("e+");
+    if (plus != std::string::npos) {
+        size_t digits = plus + 2;
+        while (digits + 1 < s.size() && s[digits] == '0') ++digits;
+        s = s.substr(0, plus + 1) + s.substr(digits);  // 1e5
+    }
+    return s;
+}
+
+}  // namespace
+
+std::vector<AccuracySet> frame_sets(const Scene &scene, unsigned width, unsigned height, uint32_t seed) {
+    std::string error;
+    kdrt_tree *scout = build_tree(scene.geometry, KDRT_INTERSECTOR_DEFAULT, error);
+    std::vector<AccuracySet> sets(2);
+    sets[0].set = "frame-primary", sets[1].set = "frame-diffuse";
+    for (AccuracySet &s : sets) s.scene = scene.name, s.mesh = scene.geometry;
+    if (!scout) return sets;  // no rays; run_accuracy_set reports the build's error
+    sets[0].rays = make_rays(scene, RayKind::primary, width, height, scout, seed);
+    sets[1].rays = make_rays(scene, RayKind::diffuse, width, height, scout, seed);
+    kdrt_tree_free(scout);
+    return sets;
+}
+
+AccuracySet far_set(const Scene &scene, double offset, unsigned width, unsigned height, uint32_t seed) {
+    AccuracySet s;
+    s.set = "far";
+    s.scene = scene.name + "@" + offset_label(offset);
+    const double scale = std::max(1.0, offset / 1000.0);
+    s.mesh = kt::translated(scene.geometry, offset, scale);
+    s.mesh.name = s.scene;
+    s.rays = make_rays(scene, RayKind::primary, width, height, nullptr, seed);
+    // The camera moves with the scene: p -> scale p + shift, the shift read off the last vertex
+    // (a wall corner; make_scene always adds the wall) to within its float rounding.
+    const size_t last = s.mesh.positions.size() - 3;
+    float eye[3];
+    for (int a = 0; a < 3; ++a)
+        eye[a] = float(scale * scene.eye[a] + (double(s.mesh.positions[last + a]) - scale * double(scene.geometry.positions[last + a])));
+    for (kdrt_ray &r : s.rays)
+        for (int a = 0; a < 3; ++a) r.org[a] = eye[a];
+    return s;
+}
+
+std::vector<AccuracySet> watertight_sets(size_t rays, uint64_t seed) {
+    std::vector<AccuracySet> sets;
+    for (kt::Mesh &mesh : kt::closed_meshes(true)) {
+        AccuracySet s;
+        s.set = "watertight";
+        s.scene = mesh.name;
+        s.rays = kt::rays_at_vertices_and_edges(mesh, rays, seed);
+        s.mesh = std::move(mesh);
+        s.must_hit = true;
+        sets.push_back(std::move(s));
+    }
+    return sets;
+}
+
+std::vector<AccuracySet> hard_case_sets(size_t rays, uint64_t seed) {
+    std::vector<AccuracySet> sets;
+    for (kt::HardSet &h : kt::hard_sets(rays, seed)) {
+        AccuracySet s;
+        s.set = "hard";
+        s.scene = h.name;
+        s.mesh = std::move(h.mesh);
+        s.rays = std::move(h.rays);
+        sets.push_back(std::move(s));
+    }
+    return sets;
+}
+
+bool run_accuracy_set(const AccuracySet &set, const std::vector<kdrt_intersector> &intersectors, size_t reference_rays,
+                      unsigned threads, unsigned timed_passes, uint32_t seed, bool oracle_row, std::vector<AccuracyRow> &rows,
+                      std::string &error) {
+    const kt::Oracle oracle(set.mesh);
+    const std::vector<size_t> sample = reference_sample(set.rays.size(), reference_rays, seed);
+    std::vector<kdrt_ray> sampled;
+    for (size_t i : sample) sampled.push_back(set.rays[i]);
+    AccuracyRow base;
+    base.set = set.set;
+    base.scene = set.scene;
+    base.triangles = set.mesh.triangle_count();
+
+    std::vector<kt::Reference> refs;
+    if (oracle_row) {
+        // The reference is computed anyway; on one thread, its time is the oracle's row.
+        AccuracyRow row = base;
+        row.intersector = "oracle";
+        row.measured = false;
+        row.rays = sampled.size();
+        refs.resize(sampled.size());
+        row.trace_ms = timed_parallel(sampled.size(), 1, [&](size_t i) { refs[i] = oracle.trace(sampled[i]); });
+        rows.push_back(row);
+    } else {
+        refs = kt::reference_all(oracle, sampled);
+    }
+
+    // One tree per intersector, timed in turns (fast, watertight, fast, ...) so that a busy
+    // moment of the machine does not land on one intersector only; the fastest pass counts.
+    std::vector<kdrt_tree *> trees;
+    for (kdrt_intersector intersector : intersectors) {
+        trees.push_back(build_tree(set.mesh, intersector, error));
+        if (!trees.back()) {
+            error = set.set + " " + set.scene + ": " + error;
+            for (kdrt_tree *t : trees) kdrt_tree_free(t);
+            return false;
+        }
+    }
+    std::vector<double> fastest(trees.size(), INFINITY);
+    std::vector<kdrt_hit> hits(set.rays.size());  // the timed passes' answers (the counters trace again)
+    for (unsigned pass = 0; pass < std::max(1u, timed_passes); ++pass)
+        for (size_t m = 0; m < trees.size(); ++m) {
+            const kdrt_tree *tree = trees[m];
+            double ms = timed_parallel(set.rays.size(), threads, [&](size_t i) { kdrt_intersect(tree, &set.rays[i], &hits[i]); });
+            fastest[m] = std::min(fastest[m], ms);
+        }
+    for (size_t m = 0; m < trees.size(); ++m) {
+        AccuracyRow row = base;
+        row.intersector = intersector_name(intersectors[m]);
+        row.rays = set.rays.size();
+        row.trace_ms = set.rays.empty() ? 0.0 : fastest[m];
+        row.counts_leaks = set.must_hit;
+        std::string first;  // the first error found, for the run's log
+        if (set.must_hit) {
+            const kt::ErrorCounts leaked = kt::count_leaks(trees[m], set.rays);
+            row.errors.leaks = leaked.leaks;
+            first = leaked.first;
+        }
+        const kt::ErrorCounts checked = kt::count_mismatches(trees[m], oracle, refs, sampled);
+        row.errors.false_hits = checked.false_hits;
+        row.errors.mismatches = checked.mismatches;
+        row.reference_rays = sample.size();
+        if (first.empty()) first = checked.first;
+        // Secondary rays from the sample's hits: 4 per hit, traced twice (spawned and naive).
+        const kt::ErrorCounts spawned = kt::count_self_hits(trees[m], sampled);
+        row.errors.self_hits = spawned.self_hits;
+        row.spawned_rays = spawned.rays;
+        if (first.empty()) first = spawned.first;
+        row.naive_self_hits = kt::count_self_hits(trees[m], sampled, kt::Spawn::naive).self_hits;
+        row.errors.rays = row.rays;
+        row.errors.first = first;
+        rows.push_back(row);
+    }
+    for (kdrt_tree *t : trees) kdrt_tree_free(t);
+    return true;
+}
+
+std::string accuracy_csv_header() {
+    return "Set;Scene;Intersector;Triangles;Rays;TraceMs;MRaysPerSec;Leaks;FalseHits;SelfHits;Mismatches;SpawnedRays;"
+           "ReferenceRays;NaiveSelfHits";
+}
+
+std::string accuracy_csv_row(const AccuracyRow &row) {
+    char buf[256];
+    double mrays = row.trace_ms > 0 ? double(row.rays) / (row.trace_ms * 1000.0) : 0.0;
+    int n = std::snprintf(buf, sizeof buf, ";%s;%u;%zu;%.3f;%.3f;", row.intersector.c_str(), row.triangles, row.rays,
+                          row.trace_ms, mrays);
+    std::string line = row.set + ";" + row.scene + std::string(buf, size_t(n));
+    if (!row.measured) return line + ";;;;;;";  // the oracle is the reference: nothing to count
+    const kt::ErrorCounts &e = row.errors;
+    line += row.counts_leaks ? std::to_string(e.leaks) : "";  // only must-hit sets can leak
+    n = std::snprintf(buf, sizeof buf, ";%zu;%zu;%zu;%zu;%zu;%zu", e.false_hits, e.self_hits, e.mismatches,
+                      row.spawned_rays, row.reference_rays, row.naive_self_hits);
+    return line + std::string(buf, size_t(n));
+}
+
+std::vector<AccuracyRow> accuracy_summary(const std::vector<AccuracyRow> &rows) {
+    std::vector<AccuracyRow> sums;
+    std::vector<size_t> scenes;
+    for (const AccuracyRow &row : rows) {
+        auto it = std::find_if(sums.begin(), sums.end(), [&](const AccuracyRow &s) { return s.set == row.set && s.intersector == row.intersector; });
+        if (it == sums.end()) {
+            AccuracyRow s;
+            s.set = row.set;
+            s.intersector = row.intersector;
+            s.measured = row.measured;
+            sums.push_back(s);
+            scenes.push_back(0);
+            it = sums.end() - 1;
+        }
+        AccuracyRow &s = *it;
+        ++scenes[size_t(it - sums.begin())];
+        s.triangles += row.triangles;
+        s.rays += row.rays;
+        s.trace_ms += row.trace_ms;
+        s.counts_leaks = s.counts_leaks || row.counts_leaks;
+        s.errors.leaks += row.errors.leaks;
+        s.errors.false_hits += row.errors.false_hits;
+        s.errors.self_hits += row.errors.self_hits;
+        s.errors.mismatches += row.errors.mismatches;
+        s.spawned_rays += row.spawned_rays;
+        s.naive_self_hits += row.naive_self_hits;
+        s.reference_rays += row.reference_rays;
+    }
+    for (size_t i = 0; i < sums.size(); ++i) sums[i].scene = std::to_string(scenes[i]) + (scenes[i] == 1 ? " scene" : " scenes");
+    return sums;
+}
+
+std::string accuracy_table(const std::vector<AccuracyRow> &summary) {
+    std::string text;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%-14s %-11s %-10s %10s %9s %7s %10s %17s %17s %14s\n", "Set", "Intersector", "Scenes",
+                  "Rays", "MRays/s", "Leaks", "FalseHits", "SelfHits/Spawned", "Mismatches/Ref", "NaiveSelfHits");
+    text += buf;
+    for (const AccuracyRow &s : summary) {
+        double mrays = s.trace_ms > 0 ? double(s.rays) / (s.trace_ms * 1000.0) : 0.0;
+        if (!s.measured) {
+            std::snprintf(buf, sizeof buf, "%-14s %-11s %-10s %10zu %9.3f %7s %10s %17s %17s %14s\n", s.set.c_str(),
+                          s.intersector.c_str(), s.scene.c_str(), s.rays, mrays, "-", "-", "-", "(reference)", "-");
+        } else {
+            std::string leaks = s.counts_leaks ? std::to_string(s.errors.leaks) : "-";
+            std::string self = std::to_string(s.errors.self_hits) + "/" + std::to_string(s.spawned_rays);
+            std::string wrong = std::to_string(s.errors.mismatches) + "/" + std::to_string(s.reference_rays);
+            std::snprintf(buf, sizeof buf, "%-14s %-11s %-10s %10zu %9.3f %7s %10zu %17s %17s %14zu\n", s.set.c_str(),
+                          s.intersector.c_str(), s.scene.c_str(), s.rays, mrays, leaks.c_str(), s.errors.false_hits, self.c_str(),
+                          wrong.c_str(), s.naive_self_hits);
+        }
+        text += buf;
+    }
+    return text;
 }
 
 }  // namespace kb

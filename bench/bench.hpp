@@ -1,7 +1,8 @@
 // kdrt-bench's pieces, kept apart from main() so the tests can check them: options, the leaf-size
-// stop rule, the benchmark scene and its rays, and the CSV rows.
+// stop rule, the benchmark scene and its rays, the CSV rows, and the --accuracy sets and rows.
 #pragma once
 
+#include "hard_cases.hpp"
 #include "kdrt.h"
 #include "mesh_io.hpp"
 #include "reference.hpp"
@@ -24,10 +25,19 @@ struct Options {
     std::string output;                // "" means stdout
     bool compare_embree = false;
     unsigned subdivide = 0;
-    size_t reference_rays = 20000;     // rays checked against the reference per frame; 0: all
+    size_t reference_rays = 20000;     // rays checked against the reference per frame or set; 0: all
+    // Ray/triangle tests to run; empty: watertight in the leaf-size CSV, both under --accuracy.
+    std::vector<kdrt_intersector> intersectors;
+    bool accuracy = false;             // --accuracy: error counts per intersector, not leaf sizes
+    size_t hard_rays = 20000;          // --accuracy: rays per watertight and per hard-case set
     std::vector<std::string> inputs;   // mesh files or folders
     bool help = false;
 };
+
+// "watertight" or "fast", as --intersector and the Intersector column spell them.
+const char *intersector_name(kdrt_intersector intersector);
+// What the run traces with: opt.intersectors, or the default for its mode.
+std::vector<kdrt_intersector> intersectors_for(const Options &opt);
 
 // The original benchmark's leaf sizes: 0 (no tree), 1, 2, 3, 4, 6, 8, ..., 768, 1024.
 std::vector<uint32_t> default_leaf_sizes();
@@ -72,6 +82,7 @@ struct Row {
     int max_leaf_size = 0;             // -1 on Embree rows: not a kd-tree
     double trace_ms = 0, build_ms = 0;
     std::string builder;
+    std::string intersector = "watertight";  // empty on Embree rows
     uint32_t triangles = 0;
     size_t rays = 0;
     bool has_tree_stats = false;       // Embree rows leave the tree columns empty
@@ -80,5 +91,62 @@ struct Row {
 };
 std::string csv_header();
 std::string csv_row(const Row &row);
+
+// ---- kdrt-bench --accuracy ----
+
+// One ray set of the accuracy run over its own scene.
+struct AccuracySet {
+    std::string set;              // Set column: frame-primary, frame-diffuse, watertight, hard, far
+    std::string scene;            // Scene column: the mesh, hard case, or moved mesh
+    kt::Mesh mesh;
+    std::vector<kdrt_ray> rays;
+    bool must_hit = false;        // every ray crosses the surface: a miss is a leak
+};
+
+// The benchmark frame of a scene: its primary rays ("frame-primary") and a cosine bounce from
+// every primary hit ("frame-diffuse", spawned with kdrt_spawn_ray()). Both ray sets are made with
+// a default (watertight) tree so every intersector traces the very same rays.
+std::vector<AccuracySet> frame_sets(const Scene &scene, unsigned width, unsigned height, uint32_t seed);
+// The frame's primary rays with the scene and the camera moved by `offset` along (1, 1, 1)
+// (kt::translated), and scaled by max(1, offset / 1000), so the scene spans as many float steps
+// (about 30,000) at 1e5 and 1e7 as at 1e3 and its triangles stay triangles ("far").
+AccuracySet far_set(const Scene &scene, double offset, unsigned width, unsigned height, uint32_t seed);
+// kt::closed_meshes(true) with kt::rays_at_vertices_and_edges() ("watertight", must hit), and
+// kt::hard_sets() ("hard"), `rays` rays each.
+std::vector<AccuracySet> watertight_sets(size_t rays, uint64_t seed);
+std::vector<AccuracySet> hard_case_sets(size_t rays, uint64_t seed);
+
+struct AccuracyRow {
+    std::string set, scene;
+    std::string intersector;      // watertight, fast, or "oracle" for the reference row
+    uint32_t triangles = 0;
+    size_t rays = 0;              // rays traced and timed
+    double trace_ms = 0;
+    bool measured = true;         // false on oracle rows: it is the reference, no errors counted
+    bool counts_leaks = false;    // only must-hit sets can leak
+    kt::ErrorCounts errors;       // leaks, false hits, self-hits, mismatches; first: the first error
+    size_t reference_rays = 0;    // the sample: rays compared with the oracle, and spawned from
+    size_t spawned_rays = 0;      // secondary rays kt::count_self_hits() spawned from the sample
+    size_t naive_self_hits = 0;   // self-hits of the same rays started at the hit, no offset
+};
+std::string accuracy_csv_header();
+std::string accuracy_csv_row(const AccuracyRow &row);
+
+// Traces one set with each intersector (a default-leaf-size median tree each, on `threads`
+// threads, timed_passes passes taking turns, the fastest kept) and counts its errors: leaks over
+// all rays (must-hit sets, kt::count_leaks); on a seeded sample of `reference_rays` rays (0: all),
+// false hits and mismatches against the double-precision oracle (kt::count_mismatches) and the
+// self-hits of the secondary rays kt::count_self_hits() spawns from the sample's hits, with
+// kdrt_spawn_ray and, for comparison, with no offset. With oracle_row, a first row times the
+// oracle itself (brute force in double precision, one thread, over the sample). Appends a row per
+// intersector; false with a message when a build fails.
+bool run_accuracy_set(const AccuracySet &set, const std::vector<kdrt_intersector> &intersectors, size_t reference_rays,
+                      unsigned threads, unsigned timed_passes, uint32_t seed, bool oracle_row, std::vector<AccuracyRow> &rows,
+                      std::string &error);
+
+// Rows summed per Set and Intersector, in first-seen order: MRaysPerSec over all their rays.
+std::vector<AccuracyRow> accuracy_summary(const std::vector<AccuracyRow> &rows);
+// The summary as an aligned text table (kdrt-bench prints it on stderr).
+std::string accuracy_table(const std::vector<AccuracyRow> &summary);
 
 }  // namespace kb

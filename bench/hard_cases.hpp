@@ -1,10 +1,11 @@
 // Ray sets where single-precision ray tracing goes wrong if it can, and the counters that say how
 // often it did. Shared by the hard-case tests and kdrt-bench --accuracy, so the figures the bench
-// publishes come from the very rays the tests hold to zero.
+// publishes come from the very rays the tests hold to zero. Everything is deterministic for a seed.
 #pragma once
 
 #include "kdrt.h"
 #include "mesh_io.hpp"
+#include "reference.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -13,19 +14,41 @@
 
 namespace kt {
 
-// Closed surfaces (every edge shared by exactly two triangles): generated spheres, meshes with
-// integer coordinates, so aims are exact, and the closed meshes of ../shared/meshes when present.
+// Closed surfaces (every edge shared by exactly two triangles, see is_closed): generated spheres
+// (float coordinates), meshes with small integer coordinates (so aims at their vertices and at
+// dyadic points of their edges are exact), and, when include_shared is true, the meshes of
+// ../shared/meshes (KDRT_MESH_DIR, seed/ and common/) that pass is_closed, largest last. Loading
+// those takes a few seconds; files that are missing or open are skipped silently.
 std::vector<Mesh> closed_meshes(bool include_shared);
 
-// Rays that must hit: each starts outside the closed mesh's box, or at a point inside the mesh,
-// and is aimed exactly at one of its vertices or at a point on one of its shared edges (so the
-// ray crosses the surface there). A miss is a leak.
+// True when every edge, with vertices matched by equal coordinates (as the watertight test
+// matches them), belongs to exactly two triangles and no triangle has zero area. Otherwise false,
+// with the reason in *why when given.
+bool is_closed(const Mesh &mesh, std::string *why = nullptr);
+
+// Rays that must hit: each is aimed at one of the closed mesh's vertices or at a point on one of
+// its edges (exactly for integer meshes; else the float nearest such a point) and starts either
+// at a point well inside the mesh, or outside its box on the line from such an inside point
+// through the target, beyond the target. Either way the ray has to cross the surface (from the
+// inside it must get out; from outside it passes the target and then the inside point), so a miss
+// is a leak. tmin = 0, tmax = infinity, dir = target - origin (the target is at t = 1).
+// Inside points are found by a double-precision parity test and are kept 1e-4 of the box's
+// diagonal (integer meshes: 0.25 and integer coordinates) away from every triangle.
 std::vector<kdrt_ray> rays_at_vertices_and_edges(const Mesh &closed, size_t count, uint64_t seed);
 
-// The hard placements of the tests as ray sets over their own small scenes: rays in split planes,
-// axis-parallel rays, rays parallel to a face, grazing rays under 1 degree to skinny triangles,
-// needle and tiny triangles, coplanar overlapping triangles. Every answer is checked against the
-// double-precision oracle (kt::Oracle).
+// The hard placements of the tests as ray sets over their own small scenes, about rays_per_set
+// rays each: "split_planes_grid" / "split_planes_soup" (rays lying in every plane the median
+// builder can split at, i.e. every triangle centroid coordinate, and in every vertex coordinate
+// plane, with +0 and -0 across it, and rays crossing those planes from a point on them),
+// "axis_parallel" (axis-aligned rays with +-0 components on lattices through a grid's vertices and
+// edges and over a sphere), "parallel_to_face" (rays exactly parallel to integer triangles, lifted
+// 2^-20 to 1/64 of the normal off their plane), "in_plane" (the same, lying exactly in the plane:
+// they touch the triangle along a segment or not at all, and the oracle, det == 0, calls both a
+// miss), "grazing_skinny" (rays 0.1 to 1 degree off the plane of skinny
+// triangles, aimed inside them and at their edges), "needles_tiny" (needle triangles and
+// triangles down to 1e-6 across), "coplanar_overlap" (stacks of coplanar overlapping triangles,
+// including the same triangle with rotated and reversed corners). Every answer is to be checked
+// against the double-precision oracle (kt::Oracle; count_mismatches).
 struct HardSet {
     std::string name;
     Mesh mesh;
@@ -33,7 +56,9 @@ struct HardSet {
 };
 std::vector<HardSet> hard_sets(size_t rays_per_set, uint64_t seed);
 
-// `mesh` moved by `offset` along (1, 1, 1) and scaled by `scale` about its own centre first.
+// `mesh` scaled by `scale` about the centre of its box, then moved by `offset` along (1, 1, 1),
+// rounded to float. Far out, keep the scene large against a float ulp there (at 1e7 the ulp is 1):
+// scale by about offset * 1e-4 so its triangles stay triangles.
 Mesh translated(const Mesh &mesh, double offset, double scale);
 
 // Error counts of one tree over one ray set.
@@ -43,13 +68,37 @@ struct ErrorCounts {
     size_t false_hits = 0;  // hits where the oracle says the ray surely misses that triangle
     size_t self_hits = 0;   // spawned rays that hit the triangle they leave
     size_t mismatches = 0;  // any disagreement with the oracle (includes false hits)
+    std::string first;      // a description of the first counted error, "" when none
 };
 
-// Leaks: rays of rays_at_vertices_and_edges() that kdrt_intersect() says miss.
+// Leaks: rays of rays_at_vertices_and_edges() that kdrt_intersect() says miss. Fills rays, leaks.
+// Runs on all cores.
 ErrorCounts count_leaks(const kdrt_tree *tree, const std::vector<kdrt_ray> &must_hit);
 
-// Self-hits: for every ray that hits, kdrt_spawn_ray() a reflected ray and a ray continuing
-// through the surface, and count those whose nearest hit is the triangle they leave.
-ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays);
+// How a secondary ray's origin is placed: kdrt_spawn_ray() (offset off the surface), or the
+// naive org + t * dir with no offset (the comparison that shows self-hits are real).
+enum class Spawn { kdrt, naive };
+
+// Secondary rays: for every ray that hits, four rays from the hit: reflected, continuing through
+// the surface, and two grazing ones leaving at 0.5 degrees to the surface on either side; in the
+// order of the rays they come from. `from` is the triangle they leave, `primary` the ray's index.
+struct SpawnedRay {
+    kdrt_ray ray;
+    uint32_t from;
+    size_t primary;
+};
+std::vector<SpawnedRay> spawn_rays(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn = Spawn::kdrt);
+
+// Self-hits: the spawn_rays() whose nearest hit is the triangle they leave (a plane is met once,
+// so any such hit is a self-hit). Fills rays (spawned rays) and self_hits. Runs on all cores.
+ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn = Spawn::kdrt);
+
+// Oracle disagreements: traces every ray, checks it with check_hit against refs (from
+// reference_all(oracle, rays), computed once per ray set and reused across trees). Fills rays,
+// mismatches (check_hit's wrong) and false_hits; the hits and the tally go to *hits / *tally when
+// given.
+ErrorCounts count_mismatches(const kdrt_tree *tree, const Oracle &oracle, const std::vector<Reference> &refs,
+                             const std::vector<kdrt_ray> &rays, std::vector<kdrt_hit> *hits = nullptr,
+                             Agreement *tally = nullptr);
 
 }  // namespace kt

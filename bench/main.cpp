@@ -1,5 +1,6 @@
 // kdrt-bench: the original course ray tracer's leaf-size benchmark, with an error count beside
-// every timing and Embree measured in the same run. See --help and README.md.
+// every timing and Embree measured in the same run; with --accuracy, speed beside the error counts
+// of each ray/triangle test on the frame and the hard-case ray sets. See --help and README.md.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -106,6 +107,48 @@ struct Progress {
     }
 };
 
+// --accuracy: every ray set through every intersector, a CSV row each, the summary on stderr.
+int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const std::vector<kdrt_intersector> &intersectors,
+                 FILE *out, Progress &progress, int failures) {
+    const uint32_t seed = 1;
+    const double offsets[] = {1e3, 1e5, 1e7};
+    kb::Stopwatch wall;
+    progress.note("kdrt-bench --accuracy: generating the watertight and hard-case ray sets");
+    std::vector<kb::AccuracySet> extra = kb::watertight_sets(opt.hard_rays, seed);
+    for (kb::AccuracySet &s : kb::hard_case_sets(opt.hard_rays, seed)) extra.push_back(std::move(s));
+    progress.total = inputs.size() * (2 + std::size(offsets)) + extra.size();
+
+    std::vector<kb::AccuracyRow> rows;
+    std::string error;
+    auto run = [&](const kb::AccuracySet &set) {
+        const size_t first = rows.size();
+        if (!kb::run_accuracy_set(set, intersectors, opt.reference_rays, opt.threads, opt.repeat, seed, true, rows, error)) {
+            progress.note("kdrt-bench: " + error);
+            ++failures;
+        }
+        for (size_t i = first; i < rows.size(); ++i) {
+            std::fprintf(out, "%s\n", kb::accuracy_csv_row(rows[i]).c_str());
+            if (!rows[i].errors.first.empty())
+                progress.note(set.set + " " + set.scene + " " + rows[i].intersector + ": first error: " + rows[i].errors.first);
+        }
+        std::fflush(out);
+        progress.step(set.set + " " + set.scene);
+    };
+    std::fprintf(out, "%s\n", kb::accuracy_csv_header().c_str());
+    std::fflush(out);
+    for (const Input &in : inputs) {
+        const kb::Scene scene = kb::make_scene(in.mesh, in.label);
+        for (const kb::AccuracySet &set : kb::frame_sets(scene, opt.width, opt.height, seed)) run(set);
+        for (double offset : offsets) run(kb::far_set(scene, offset, opt.width, opt.height, seed));
+    }
+    for (const kb::AccuracySet &set : extra) run(set);
+
+    std::fprintf(stderr, "\n%s", kb::accuracy_table(kb::accuracy_summary(rows)).c_str());
+    std::fprintf(stderr, "kdrt-bench --accuracy: %.1f s\n", wall.ms() / 1000.0);
+    if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or set(s) failed; see above");
+    return failures ? 1 : 0;
+}
+
 }  // namespace
 
 int main(int argc, char **argv) {
@@ -158,8 +201,12 @@ int main(int argc, char **argv) {
     for (Input &in : inputs)
         if (opt.subdivide) in.mesh = kt::subdivided(in.mesh, opt.subdivide), in.label += "_SUB" + std::to_string(opt.subdivide);
 
+    const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
+    if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, out, progress, failures);
+
     for (const Input &in : inputs)
-        progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() + opt.compare_embree);
+        progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() +
+                                        opt.compare_embree);
 
     std::fprintf(out, "%s\n", kb::csv_header().c_str());
     std::fflush(out);
@@ -193,29 +240,32 @@ int main(int argc, char **argv) {
         row.reference_rays = sample.size();
         std::vector<kdrt_hit> hits(rays.size());
         for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
-            for (unsigned rep = 0; rep < opt.repeat; ++rep) {
-                kdrt_build_options options = kdrt_default_build_options();
-                options.max_leaf_size = leaf;
-                kdrt_tree *tree = nullptr;
-                kb::Stopwatch build_clock;
-                r = kdrt_tree_build(&view, &options, &tree, nullptr);
-                row.build_ms = build_clock.ms();
-                if (r != KDRT_SUCCESS) {
-                    progress.note("kdrt-bench: " + in.label + " leaf size " + std::to_string(leaf) + ": " + kdrt_result_string(r));
-                    ++failures;
-                    continue;
+            for (kdrt_intersector intersector : intersectors)
+                for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                    kdrt_build_options options = kdrt_default_build_options();
+                    options.max_leaf_size = leaf;
+                    options.intersector = intersector;
+                    kdrt_tree *tree = nullptr;
+                    kb::Stopwatch build_clock;
+                    r = kdrt_tree_build(&view, &options, &tree, nullptr);
+                    row.build_ms = build_clock.ms();
+                    if (r != KDRT_SUCCESS) {
+                        progress.note("kdrt-bench: " + in.label + " leaf size " + std::to_string(leaf) + ": " + kdrt_result_string(r));
+                        ++failures;
+                        continue;
+                    }
+                    row.trace_ms = kb::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                    kdrt_tree_get_stats(tree, &row.stats);
+                    kdrt_tree_free(tree);
+                    row.builder = opt.builder;
+                    row.intersector = kb::intersector_name(intersector);
+                    row.max_leaf_size = int(leaf);
+                    row.has_tree_stats = true;
+                    row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
+                    std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
+                    std::fflush(out);  // an interrupted run keeps every row written so far
+                    progress.step(in.label + " leaf " + std::to_string(leaf) + " " + row.intersector);
                 }
-                row.trace_ms = kb::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
-                kdrt_tree_get_stats(tree, &row.stats);
-                kdrt_tree_free(tree);
-                row.builder = opt.builder;
-                row.max_leaf_size = int(leaf);
-                row.has_tree_stats = true;
-                row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
-                std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
-                std::fflush(out);  // an interrupted run keeps every row written so far
-                progress.step(in.label + " leaf " + std::to_string(leaf));
-            }
         if (opt.compare_embree)
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
                 kb::PeerRun peer;
@@ -225,6 +275,7 @@ int main(int argc, char **argv) {
                     break;
                 }
                 row.builder = "embree";
+                row.intersector.clear();  // Embree's own test
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;
                 row.build_ms = peer.build_ms;

@@ -1,11 +1,14 @@
 // kdrt-bench's pieces: options, the original's leaf-size stop rule, the CSV format, the scene,
-// and the reference comparison behind the Mismatches column.
+// the reference comparison behind the Mismatches column, the diffuse rays' spawned origins, and
+// the --accuracy sets, rows and summary.
 #include "bench.hpp"
 #include "test_support.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <set>
 #include <sstream>
 
@@ -79,13 +82,250 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
     CHECK(error.find("not available") != std::string::npos);
 }
 
+TEST_CASE("--intersector and --accuracy parse, with their defaults", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    REQUIRE(parse({}, opt, error));
+    CHECK_FALSE(opt.accuracy);
+    CHECK(opt.intersectors.empty());
+    CHECK(kb::intersectors_for(opt) == std::vector<kdrt_intersector>{KDRT_INTERSECTOR_WATERTIGHT});
+    CHECK(opt.repeat == 1);
+
+    REQUIRE(parse({"--intersector", "fast"}, opt, error));
+    CHECK(kb::intersectors_for(opt) == std::vector<kdrt_intersector>{KDRT_INTERSECTOR_FAST});
+    REQUIRE(parse({"--intersector", "watertight,fast"}, opt, error));
+    CHECK(kb::intersectors_for(opt) == std::vector<kdrt_intersector>{KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST});
+    CHECK(std::string(kb::intersector_name(KDRT_INTERSECTOR_FAST)) == "fast");
+    CHECK(std::string(kb::intersector_name(KDRT_INTERSECTOR_WATERTIGHT)) == "watertight");
+    CHECK(std::string(kb::intersector_name(KDRT_INTERSECTOR_DEFAULT)) == "watertight");
+
+    // --accuracy: both intersectors, a smaller frame, three timed passes, unless told otherwise.
+    REQUIRE(parse({"--accuracy"}, opt, error));
+    CHECK(opt.accuracy);
+    CHECK(kb::intersectors_for(opt) == std::vector<kdrt_intersector>{KDRT_INTERSECTOR_FAST, KDRT_INTERSECTOR_WATERTIGHT});
+    CHECK(opt.width == 400);
+    CHECK(opt.height == 400);
+    CHECK(opt.repeat == 3);
+    CHECK(opt.hard_rays == 20000);
+    CHECK(opt.reference_rays == 20000);
+    REQUIRE(parse({"--accuracy", "--size", "64x32", "--repeat", "1", "--hard-rays", "500", "--intersector", "fast",
+                   "--reference-rays", "100", "-o", "acc.csv", "m.off"},
+                  opt, error));
+    CHECK(opt.width == 64);
+    CHECK(opt.height == 32);
+    CHECK(opt.repeat == 1);
+    CHECK(opt.hard_rays == 500);
+    CHECK(opt.reference_rays == 100);
+    CHECK(kb::intersectors_for(opt) == std::vector<kdrt_intersector>{KDRT_INTERSECTOR_FAST});
+    CHECK(opt.output == "acc.csv");
+    CHECK(opt.inputs == std::vector<std::string>{"m.off"});
+
+    const std::vector<std::vector<const char *>> bad = {
+        {"--intersector", "double"}, {"--intersector", "fast,"}, {"--intersector", ""},  {"--intersector"},
+        {"--hard-rays", "0"},        {"--hard-rays", "many"},    {"--hard-rays", "10"},  // without --accuracy
+        {"--leaf-sizes", "1", "--accuracy"}, {"--accuracy", "--rays", "diffuse"}, {"--accuracy", "--compare", "embree"}};
+    for (const auto &args : bad) {
+        INFO(args[0] << " " << (args.size() > 1 ? args[1] : ""));
+        error.clear();
+        CHECK_FALSE(parse(args, opt, error));
+        const bool named = error.find(args[0]) != std::string::npos || (args.size() > 1 && error.find(args[1]) != std::string::npos);
+        CHECK(named);
+    }
+}
+
+TEST_CASE("diffuse rays leave their primary hit through kdrt_spawn_ray, near and far from the origin", "[bench]") {
+    const kt::Mesh ball = kt::sphere(16, 32, 1.0);
+    const kb::Scene scene = kb::make_scene(ball, "BALL");
+    // The same frame moved 1e5 along (1, 1, 1) (scaled by 100, as the far accuracy set does):
+    // there a float step is 1/128, and a fixed offset of 1e-4 along the normal rounds away.
+    const kb::AccuracySet far = kb::far_set(scene, 1e5, 24, 24, 1);
+    kb::Scene moved = scene;
+    moved.geometry = far.mesh;
+    std::memcpy(moved.eye, far.rays[0].org, sizeof moved.eye);
+    for (const kb::Scene *s : {&scene, static_cast<const kb::Scene *>(&moved)}) {
+        INFO("eye z " << s->eye[2]);
+        kt::TreePtr tree = kt::build(s->geometry, 4);
+        const std::vector<kdrt_ray> primary = kb::make_rays(*s, kb::RayKind::primary, 24, 24, tree.get(), 1);
+        const std::vector<kdrt_ray> bounces = kb::make_rays(*s, kb::RayKind::diffuse, 24, 24, tree.get(), 1);
+        REQUIRE(bounces.size() == primary.size());  // every primary ray hits the ball or the wall
+        size_t moved_off = 0, self_hits = 0, ball_hits = 0;
+        for (size_t i = 0; i < primary.size(); ++i) {
+            kdrt_hit h, b;
+            REQUIRE(kdrt_intersect(tree.get(), &primary[i], &h));
+            ball_hits += h.triangle < s->mesh_triangles;
+            float point[3], normal[3], expected[3];
+            REQUIRE(kdrt_hit_surface(tree.get(), &h, point, normal));
+            // The origin is kdrt_offset_ray_origin's, on the side the camera sees.
+            kdrt_offset_ray_origin(point, normal, bounces[i].dir, expected);
+            CHECK(std::memcmp(expected, bounces[i].org, sizeof expected) == 0);
+            moved_off += std::memcmp(point, bounces[i].org, sizeof point) != 0;
+            double side = 0, towards = 0;
+            for (int a = 0; a < 3; ++a)
+                side += double(normal[a]) * bounces[i].dir[a], towards += double(normal[a]) * primary[i].dir[a];
+            CHECK(side * towards < 0);  // the bounce goes back to the side the primary ray came from
+            CHECK(bounces[i].tmin == 0);
+            CHECK(bounces[i].tmax == INFINITY);
+            if (kdrt_intersect(tree.get(), &bounces[i], &b)) self_hits += b.triangle == h.triangle;
+        }
+        CHECK(moved_off == primary.size());  // no bounce starts at its primary hit point
+        CHECK(self_hits == 0);
+        CHECK(ball_hits > primary.size() / 2);
+    }
+}
+
+TEST_CASE("accuracy sets: the frame, the frame moved far away with its camera", "[bench]") {
+    const kt::Mesh ball = kt::sphere(12, 24, 1.0);
+    const kb::Scene scene = kb::make_scene(ball, "BALL");
+    const std::vector<kb::AccuracySet> frame = kb::frame_sets(scene, 20, 20, 1);
+    REQUIRE(frame.size() == 2);
+    CHECK(frame[0].set == "frame-primary");
+    CHECK(frame[1].set == "frame-diffuse");
+    kt::TreePtr tree = kt::build(scene.geometry, 4);
+    const std::vector<kdrt_ray> primary = kb::make_rays(scene, kb::RayKind::primary, 20, 20, tree.get(), 1);
+    const std::vector<kdrt_ray> diffuse = kb::make_rays(scene, kb::RayKind::diffuse, 20, 20, tree.get(), 1);
+    for (const kb::AccuracySet &s : frame) {
+        CHECK(s.scene == "BALL");
+        CHECK_FALSE(s.must_hit);
+        CHECK(s.mesh.positions == scene.geometry.positions);
+        const std::vector<kdrt_ray> &expected = &s == &frame[0] ? primary : diffuse;
+        REQUIRE(s.rays.size() == expected.size());
+        CHECK(std::memcmp(s.rays.data(), expected.data(), expected.size() * sizeof(kdrt_ray)) == 0);
+    }
+
+    // Moved far away, the camera moves along: the rays see what they saw near the origin.
+    std::vector<kdrt_hit> near_hits = kt::trace_all(tree.get(), primary);
+    for (double offset : {1e3, 1e5, 1e7}) {
+        INFO("offset " << offset);
+        const kb::AccuracySet far = kb::far_set(scene, offset, 20, 20, 1);
+        CHECK(far.set == "far");
+        CHECK(far.scene.rfind("BALL@1e", 0) == 0);
+        REQUIRE(far.mesh.triangle_count() == scene.geometry.triangle_count());
+        REQUIRE(far.rays.size() == primary.size());
+        for (int a = 0; a < 3; ++a) CHECK(far.mesh.positions[size_t(a)] > 0.9 * offset);
+        kt::TreePtr moved = kt::build(far.mesh, 4);
+        const std::vector<kdrt_hit> far_hits = kt::trace_all(moved.get(), far.rays);
+        size_t same = 0;
+        for (size_t i = 0; i < far_hits.size(); ++i) same += far_hits[i].triangle == near_hits[i].triangle;
+        CHECK(same >= far_hits.size() * 9 / 10);
+    }
+    CHECK(kb::far_set(scene, 1e5, 20, 20, 1).scene == "BALL@1e5");
+}
+
+TEST_CASE("accuracy CSV: header, the oracle row, counters in their columns", "[bench]") {
+    const std::vector<std::string> columns = split(kb::accuracy_csv_header(), ';');
+    REQUIRE(columns == std::vector<std::string>{"Set", "Scene", "Intersector", "Triangles", "Rays", "TraceMs", "MRaysPerSec",
+                                                "Leaks", "FalseHits", "SelfHits", "Mismatches", "SpawnedRays",
+                                                "ReferenceRays", "NaiveSelfHits"});
+    kb::AccuracyRow row;
+    row.set = "watertight";
+    row.scene = "cow";
+    row.intersector = "fast";
+    row.triangles = 5804;
+    row.rays = 20000;
+    row.trace_ms = 80;
+    row.counts_leaks = true;
+    row.errors.leaks = 7;
+    row.errors.false_hits = 1;
+    row.errors.self_hits = 2;
+    row.errors.mismatches = 3;
+    row.spawned_rays = 79000;
+    row.reference_rays = 5000;
+    row.naive_self_hits = 4000;
+    std::vector<std::string> f = split(kb::accuracy_csv_row(row), ';');
+    REQUIRE(f.size() == columns.size());
+    CHECK(f == std::vector<std::string>{"watertight", "cow", "fast", "5804", "20000", "80.000", "0.250", "7", "1", "2", "3",
+                                        "79000", "5000", "4000"});
+    row.counts_leaks = false;  // a set whose rays need not hit: no leak count, not a zero
+    f = split(kb::accuracy_csv_row(row), ';');
+    REQUIRE(f.size() == columns.size());
+    CHECK(f[7].empty());
+    CHECK(f[8] == "1");
+    row.measured = false;  // the oracle's row: its speed only
+    row.intersector = "oracle";
+    f = split(kb::accuracy_csv_row(row), ';');
+    REQUIRE(f.size() == columns.size());
+    CHECK(f[2] == "oracle");
+    CHECK(f[6] == "0.250");
+    for (size_t c = 7; c < f.size(); ++c) CHECK(f[c].empty());
+}
+
+TEST_CASE("accuracy run on tiny sets: rows per intersector, leaks counted on must-hit sets", "[bench]") {
+    // The frame of a small ball: every counter zero for both intersectors.
+    const kb::Scene scene = kb::make_scene(kt::sphere(8, 16, 1.0), "BALL");
+    const std::vector<kdrt_intersector> both = {KDRT_INTERSECTOR_FAST, KDRT_INTERSECTOR_WATERTIGHT};
+    std::vector<kb::AccuracyRow> rows;
+    std::string error;
+    for (const kb::AccuracySet &set : kb::frame_sets(scene, 16, 16, 1))
+        REQUIRE(kb::run_accuracy_set(set, both, 100, 1, 2, 1, true, rows, error));
+    REQUIRE(rows.size() == 6);  // oracle, fast, watertight for each set
+    for (size_t i = 0; i < rows.size(); ++i) {
+        INFO(rows[i].set << " " << rows[i].intersector);
+        CHECK(rows[i].intersector == (i % 3 == 0 ? "oracle" : i % 3 == 1 ? "fast" : "watertight"));
+        CHECK(rows[i].scene == "BALL");
+        CHECK(rows[i].set == (i < 3 ? "frame-primary" : "frame-diffuse"));
+        CHECK(rows[i].triangles == scene.geometry.triangle_count());
+        CHECK(rows[i].trace_ms > 0);
+        CHECK(split(kb::accuracy_csv_row(rows[i]), ';').size() == split(kb::accuracy_csv_header(), ';').size());
+        if (i % 3 == 0) {
+            CHECK_FALSE(rows[i].measured);
+            CHECK(rows[i].rays == 100);  // the oracle times its sample
+            continue;
+        }
+        CHECK(rows[i].rays == 256);  // every primary ray hits the ball or the wall, and bounces once
+        CHECK(rows[i].reference_rays == 100);
+        CHECK_FALSE(rows[i].counts_leaks);
+        CHECK(rows[i].errors.mismatches == 0);
+        CHECK(rows[i].errors.false_hits == 0);
+        CHECK(rows[i].errors.self_hits == 0);
+        CHECK(rows[i].spawned_rays > 0);
+    }
+    CHECK(rows[1].naive_self_hits > 0);  // spawning at the hit point with no offset does self-hit
+
+    // Rays at the vertices and edges of a closed sphere: Moeller-Trumbore lets some through, the
+    // watertight test none; both rows say so in Leaks.
+    const std::vector<kt::Mesh> closed = kt::closed_meshes(false);
+    REQUIRE_FALSE(closed.empty());
+    kb::AccuracySet must;
+    must.set = "watertight";
+    must.scene = closed[0].name;
+    must.mesh = closed[0];
+    must.rays = kt::rays_at_vertices_and_edges(must.mesh, 3000, 1);
+    must.must_hit = true;
+    rows.clear();
+    REQUIRE(kb::run_accuracy_set(must, both, 500, 1, 1, 1, false, rows, error));
+    REQUIRE(rows.size() == 2);  // no oracle row when not asked
+    CHECK(rows[0].intersector == "fast");
+    CHECK(rows[0].counts_leaks);
+    CHECK(rows[0].errors.leaks > 0);
+    CHECK(rows[1].intersector == "watertight");
+    CHECK(rows[1].errors.leaks == 0);
+    CHECK_FALSE(split(kb::accuracy_csv_row(rows[0]), ';')[7].empty());
+
+    // The summary adds rows of a set and intersector up, in the order first seen.
+    std::vector<kb::AccuracyRow> sum_in = rows;
+    sum_in.push_back(rows[0]);
+    sum_in.back().scene = "other";
+    const std::vector<kb::AccuracyRow> sum = kb::accuracy_summary(sum_in);
+    REQUIRE(sum.size() == 2);
+    CHECK(sum[0].intersector == "fast");
+    CHECK(sum[0].scene == "2 scenes");
+    CHECK(sum[0].rays == 2 * rows[0].rays);
+    CHECK(sum[0].errors.leaks == 2 * rows[0].errors.leaks);
+    CHECK(sum[0].trace_ms == Approx(2 * rows[0].trace_ms));
+    CHECK(sum[1].scene == "1 scene");
+    const std::string table = kb::accuracy_table(sum);
+    CHECK(table.find("MRays/s") != std::string::npos);
+    CHECK(table.find(std::to_string(sum[0].errors.leaks)) != std::string::npos);
+}
+
 TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     const std::string header = kb::csv_header();
     REQUIRE(header.rfind("Mesh;MaxLeafSize;ElapsedMs;", 0) == 0);
     const std::vector<std::string> columns = split(header, ';');
     REQUIRE(columns == std::vector<std::string>{"Mesh", "MaxLeafSize", "ElapsedMs", "Builder", "Triangles", "BuildMs",
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
-                                                "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays"});
+                                                "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
+                                                "Intersector"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
@@ -120,6 +360,9 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     CHECK(f[12] == "4096");
     CHECK(f[13] == "0");
     CHECK(f[14] == "20000");
+    CHECK(f[15] == "watertight");  // the default; appended last so the columns before keep their places
+    row.intersector = kb::intersector_name(KDRT_INTERSECTOR_FAST);
+    CHECK(split(kb::csv_row(row), ';').back() == "fast");
 
     row.builder = "embree";
     row.max_leaf_size = -1;
@@ -128,6 +371,8 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     REQUIRE(e.size() == columns.size());
     CHECK(e[1] == "-1");
     for (int c = 8; c <= 12; ++c) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
+    row.intersector.clear();  // Embree's own triangle test
+    CHECK(split(kb::csv_row(row), ';').back().empty());
 }
 
 TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "[bench]") {
