@@ -918,7 +918,9 @@ ErrorCounts count_mismatches(const kdrt_tree *tree, const Oracle &oracle, const 
     Agreement tally;
     for (size_t i = 0; i < rays.size() && i < refs.size(); ++i) {
         check_hit(oracle, refs[i], rays[i], hits[i], tally);
-        if (hits[i].triangle != KDRT_INVALID_ID && std::isnan(oracle.possible_t(rays[i], hits[i].triangle))) ++counts.false_hits;
+        if (hits[i].triangle != KDRT_INVALID_ID && std::isnan(oracle.possible_t(rays[i], hits[i].triangle)) &&
+            !oracle.in_plane_contact(rays[i], hits[i].triangle, hits[i].t))
+            ++counts.false_hits;
     }
     counts.rays = tally.rays;
     counts.mismatches = tally.wrong;

@@ -145,6 +145,35 @@ double Oracle::possible_t(const kdrt_ray &ray, uint32_t triangle) const {
     return t;
 }
 
+bool Oracle::in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) const {
+    if (size_t(triangle) * 9 >= tri_.size()) return false;
+    const double *p0 = &tri_[size_t(triangle) * 9], *e1 = p0 + 3, *e2 = p0 + 6;
+    const double o[3] = {ray.org[0], ray.org[1], ray.org[2]}, d[3] = {ray.dir[0], ray.dir[1], ray.dir[2]};
+    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    const double tv[3] = {o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]};
+    if (n[0] * d[0] + n[1] * d[1] + n[2] * d[2] != 0 || n[0] * tv[0] + n[1] * tv[1] + n[2] * tv[2] != 0) return false;
+    // In 2D, dropping the normal's largest axis: the t interval where all three edge functions
+    // (linear in t) have the triangle's orientation.
+    int drop = 0;
+    for (int a = 1; a < 3; ++a)
+        if (std::fabs(n[a]) > std::fabs(n[drop])) drop = a;
+    const int x = (drop + 1) % 3, y = (drop + 2) % 3;
+    const double corner[3][2] = {{0, 0}, {e1[x], e1[y]}, {e2[x], e2[y]}};
+    const double orient = n[drop] > 0 ? 1 : -1;  // sign of the projected triangle's area
+    double lo = std::max(0.0, double(ray.tmin)), hi = ray.tmax;
+    for (int k = 0; k < 3; ++k) {
+        const double *a = corner[k], *b = corner[(k + 1) % 3];
+        const double ex = b[0] - a[0], ey = b[1] - a[1];
+        // orient * cross(b - a, q(t) - a) >= 0 with q(t) = (o - p0) + t d, projected
+        const double c0 = orient * (ex * (tv[y] - a[1]) - ey * (tv[x] - a[0])), c1 = orient * (ex * d[y] - ey * d[x]);
+        if (c1 > 0) lo = std::max(lo, -c0 / c1);
+        else if (c1 < 0) hi = std::min(hi, -c0 / c1);
+        else if (c0 < 0) return false;
+    }
+    const double tol = t_tolerance(ray, t);
+    return lo <= hi + tol && t >= lo - tol && t <= hi + tol;
+}
+
 void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, const kdrt_hit &h, Agreement &tally) {
     bool hit = h.triangle != KDRT_INVALID_ID;
     std::ostringstream why;
@@ -154,6 +183,7 @@ void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, 
         else ++tally.exact;  // near-edge misses are fine either way; none is surely hit
     } else {
         double pt = oracle.possible_t(ray, h.triangle);
+        if (std::isnan(pt) && oracle.in_plane_contact(ray, h.triangle, h.t)) pt = h.t;  // see kdrt.h
         if (std::isnan(pt)) why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", which the ray misses";
         else if (std::fabs(h.t - pt) > oracle.t_tolerance(ray, pt, h.triangle)) why << "kdrt t=" << h.t << " on triangle " << h.triangle << ", reference t=" << pt;
         else if (ref.sure_hit && h.t > ref.sure_t + oracle.t_tolerance(ray, ref.sure_t, ref.sure_triangle))

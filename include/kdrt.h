@@ -58,8 +58,12 @@
      NaN or infinite origin or direction, an all-zero direction, a NaN tmin or tmax, or
      tmin > tmax misses everything.
      kdrt_intersect() returns the nearest hit in that range. Equal distances are broken towards the
-     lower triangle index, so the result does not depend on the tree's shape: a tree of any leaf
-     size returns exactly what max_leaf_size = 0 (test every triangle) returns for the same ray.
+     lower triangle index, so the result does not depend on the order of the tests: a tree of any
+     builder and leaf size returns exactly what max_leaf_size = 0 (test every triangle) returns
+     for the same ray, with one exception: a triangle that a ray misses by less than the test's
+     rounding error but still "hits" can lie beyond a split plane the ray never crosses, and the
+     tree, rightly, never tests it. (Seen in the tests only with KDRT_INTERSECTOR_FAST and the
+     SAH builder: an edge 1.8e-16 above an axis-parallel ray in the plane z = 0.)
      Triangles are intersected in single precision with no epsilon; a ray meeting a triangle
      exactly on its edge counts as a hit. options.intersector picks the test for a tree:
        KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
@@ -69,8 +73,11 @@
          Clang on x86-64 do not by default; elsewhere build with -ffp-contract=off).
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it.
-     Both agree with a double-precision reference on the triangle and, to a few ulps, on t
-     everywhere else. There is no double-precision query: the vertices are floats already, and the
+     A ray lying exactly in a triangle's plane may hit it anywhere on the segment the two share,
+     or miss it: the watertight test shears with a rounded dir ratio, and that freedom is what
+     keeps a ray leaving a closed mesh through an edge of a triangle seen edge-on from slipping
+     through. Both tests agree with a double-precision reference on the triangle and, to a few
+     ulps, on t everywhere else. There is no double-precision query: the vertices are floats already, and the
      tests and kdrt-bench --accuracy measure no mismatch left that doubles would remove. Zero-area triangles (coincident
      or collinear corners: the edges' cross product, evaluated in double precision, is exactly
      zero) are left out of the tree at build time and never hit; they are valid input, counted in
@@ -1411,7 +1418,7 @@ static int kdrt__intersect_watertight(const kdrt_triangles *m, uint32_t tri, con
     }
     if ((e0 < 0.0f || e1 < 0.0f || e2 < 0.0f) && (e0 > 0.0f || e1 > 0.0f || e2 > 0.0f)) return 0;
     det = e0 + e1 + e2;
-    if (det == 0.0f) return 0; /* the ray lies in the triangle's plane */
+    if (det == 0.0f) return 0; /* the ray lies in the triangle's plane, sheared exactly */
     inv_det = 1.0f / det;
     return kdrt__accept(best, tri, (e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det, e1 * inv_det,
                         e2 * inv_det, s);
