@@ -108,8 +108,8 @@ struct AccuracySet {
 // a default (watertight) tree so every intersector traces the very same rays.
 std::vector<AccuracySet> frame_sets(const Scene &scene, unsigned width, unsigned height, uint32_t seed);
 // The frame's primary rays with the scene and the camera moved by `offset` along (1, 1, 1)
-// (kt::translated), and scaled by max(1, offset / 1000), so the scene spans as many float steps
-// (about 30,000) at 1e5 and 1e7 as at 1e3 and its triangles stay triangles ("far").
+// (kt::translated), and scaled by max(1, offset / 1000), so the scene spans about as many float
+// steps at each offset (20,000 to 33,000) and its triangles stay triangles ("far").
 AccuracySet far_set(const Scene &scene, double offset, unsigned width, unsigned height, uint32_t seed);
 // kt::closed_meshes(true) with kt::rays_at_vertices_and_edges() ("watertight", must hit), and
 // kt::hard_sets() ("hard"), `rays` rays each.
