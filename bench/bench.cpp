@@ -80,7 +80,8 @@ std::string usage() {
            "  --leaf-sizes LIST   comma-separated max leaf sizes, 0 = no tree\n"
            "                      (default 0,1,2,3,4,6,8,12,...,768,1024; each mesh stops after the\n"
            "                      first size at or above its triangle count)\n"
-           "  --builder NAME      median (the SAH builder is not available yet)\n"
+           "  --builder LIST      median (the original's median split, the default), sah\n"
+           "                      (surface area heuristic), or both: median,sah\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"
@@ -203,12 +204,19 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--builder") {
             if (!value(v)) return false;
-            if (v != "median") {
-                error = v == "sah" ? "--builder sah: the SAH builder is not available yet; use median"
-                                   : "--builder wants median, got '" + v + "'";
-                return false;
+            out.builders.clear();
+            size_t start = 0;
+            while (true) {
+                size_t comma = v.find(',', start);
+                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+                if (item != "median" && item != "sah") {
+                    error = "--builder wants median, sah or both separated by a comma, got '" + v + "'";
+                    return false;
+                }
+                out.builders.push_back(item);
+                if (comma == std::string::npos) break;
+                start = comma + 1;
             }
-            out.builder = v;
         } else if (arg == "--rays") {
             if (!value(v)) return false;
             if (v == "primary") out.rays = RayKind::primary;

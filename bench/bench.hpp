@@ -20,7 +20,7 @@ struct Options {
     unsigned threads = 1;
     unsigned repeat = 1;
     std::vector<uint32_t> leaf_sizes;  // the original's list unless --leaf-sizes
-    std::string builder = "median";
+    std::vector<std::string> builders{"median"};  // "median" and/or "sah", in the order given
     RayKind rays = RayKind::primary;
     std::string output;                // "" means stdout
     bool compare_embree = false;

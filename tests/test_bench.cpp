@@ -78,8 +78,11 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
         CHECK_FALSE(parse(args, opt, error));
         CHECK(error.find(args[0]) != std::string::npos);  // the message names the option
     }
-    CHECK_FALSE(parse({"--builder", "sah"}, opt, error));
-    CHECK(error.find("not available") != std::string::npos);
+    REQUIRE(parse({"--builder", "sah"}, opt, error));
+    CHECK(opt.builders == std::vector<std::string>{"sah"});
+    REQUIRE(parse({"--builder", "median,sah"}, opt, error));
+    CHECK(opt.builders == std::vector<std::string>{"median", "sah"});
+    CHECK_FALSE(parse({"--builder", "sah,"}, opt, error));
 }
 
 TEST_CASE("--intersector and --accuracy parse, with their defaults", "[bench]") {
