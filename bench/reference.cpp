@@ -171,7 +171,20 @@ bool Oracle::in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) 
         else if (c0 < 0) return false;
     }
     const double tol = t_tolerance(ray, t);
-    return lo <= hi + tol && t >= lo - tol && t <= hi + tol;
+    if (!(lo <= hi + tol)) return false;  // the ray's line passes beside the triangle
+    // kdrt's t for such a hit is a quotient of two rounding errors: all kdrt.h promises is that
+    // it lies where the ray is within the triangle's bounding box.
+    double blo = std::max(0.0, double(ray.tmin)), bhi = ray.tmax;
+    for (int a = 0; a < 3; ++a) {
+        double lo_a = std::min({0.0, e1[a], e2[a]}) + p0[a], hi_a = std::max({0.0, e1[a], e2[a]}) + p0[a];
+        if (d[a] == 0) {
+            if (o[a] < lo_a || o[a] > hi_a) return false;
+            continue;
+        }
+        double ta = (lo_a - o[a]) / d[a], tb = (hi_a - o[a]) / d[a];
+        blo = std::max(blo, std::min(ta, tb)), bhi = std::min(bhi, std::max(ta, tb));
+    }
+    return t >= blo - tol && t <= bhi + tol;
 }
 
 void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, const kdrt_hit &h, Agreement &tally) {

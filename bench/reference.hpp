@@ -39,8 +39,8 @@ public:
     // (both widened by their tolerances, so t may be a hair below 0), or NaN.
     double possible_t(const kdrt_ray &ray, uint32_t triangle) const;
     // True when the ray lies exactly in the triangle's plane (parallel to it and through it, in
-    // double precision) and, at some t within tolerance of `t`, inside the triangle: the
-    // segment the two share, where kdrt's watertight test may report a hit (see kdrt.h).
+    // double precision), its line meets the triangle, and `t` is where the ray is within the
+    // triangle's bounding box: what kdrt.h promises of such a hit (see there).
     bool in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) const;
     // Tolerance on t for a well-conditioned hit, and for a hit on a given triangle.
     double t_tolerance(const kdrt_ray &ray, double t) const;

@@ -73,10 +73,11 @@
          Clang on x86-64 do not by default; elsewhere build with -ffp-contract=off).
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it.
-     A ray lying exactly in a triangle's plane may hit it anywhere on the segment the two share,
-     or miss it: the watertight test shears with a rounded dir ratio, and that freedom is what
-     keeps a ray leaving a closed mesh through an edge of a triangle seen edge-on from slipping
-     through. Both tests agree with a double-precision reference on the triangle and, to a few
+     A ray lying exactly in a triangle's plane and meeting it may hit it or miss it: the
+     watertight test shears with a rounded dir ratio, which turns the triangle seen edge-on into
+     a sliver, and that freedom is what keeps a ray leaving a closed mesh through an edge of such
+     a triangle from slipping through. The t of such a hit is a quotient of rounding errors: it
+     lies where the ray is within the triangle's bounding box, and no closer to the truth. Both tests agree with a double-precision reference on the triangle and, to a few
      ulps, on t everywhere else. There is no double-precision query: the vertices are floats already, and the
      tests and kdrt-bench --accuracy measure no mismatch left that doubles would remove. Zero-area triangles (coincident
      or collinear corners: the edges' cross product, evaluated in double precision, is exactly

@@ -167,17 +167,17 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
     CHECK(fast_leaks > 0);
 }
 
-TEST_CASE("watertight: rays lying exactly in a triangle's plane touch it only on the segment they share, and none slips through beside it", "[hard][watertight]") {
-    // kdrt.h's rule: a ray lying exactly in a triangle's plane may hit it on the segment the two
-    // share, or miss it. The watertight test shears the corners with the rounded
+TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only where its box meets them, and none slips through beside it", "[hard][watertight]") {
+    // kdrt.h's rule: a ray lying exactly in a triangle's plane and meeting it may hit it (at a t
+    // within the triangle's bounding box) or miss it. The watertight test shears the corners with the rounded
     // dir[kx] / dir[kz], so the projected triangle is a sliver a rounding wide rather than a
     // segment, and about 14% of in-plane rays that touch their triangle come out as hits there
     // (found by the in_plane set of kt::hard_sets). Refusing those hits is no fix: the second half
     // below is a ray that leaves the closed int_bumpy_box_10 through the edge (12,2,5)-(11,2,6)
     // shared by triangles 230 and 250, whose plane holds the ray; in the sheared coordinates it
     // lies inside 250's sliver and outside 230, so refusing in-plane hits lets it slip through.
-    // So: in-plane hits must lie on the shared segment (the oracle's in_plane_contact), never
-    // elsewhere, and the edge-on exit must still hit.
+    // So: in-plane hits must be rays whose line meets the triangle, at a t within its bounding
+    // box (the oracle's in_plane_contact), never elsewhere, and the edge-on exit must still hit.
     struct Case {
         float p[9];
         kdrt_ray ray;
@@ -216,7 +216,7 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane touch it only on
                 CHECK(kdrt_occluded(tree.get(), &c.ray) == hit);
             }
     }
-    WARN("in-plane rays reported as hits (on their shared segment): " << in_plane_hits << " of 12");
+    WARN("in-plane rays reported as hits (within the triangle's box): " << in_plane_hits << " of 12");
 
     // The second half: no leak where the ray leaves through an edge of a triangle whose plane
     // holds it (ray 17181 of rays_at_vertices_and_edges(int_bumpy_box_10, ..., 0xC0FFEE)).
