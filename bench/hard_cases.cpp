@@ -85,34 +85,6 @@ bool is_integer_mesh(const Mesh &m) {
 
 // ---- generated closed meshes ----
 
-Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer) {
-    Mesh m;
-    m.name = std::string(integer ? "int_sphere_" : "sphere_") + std::to_string(rings) + "x" + std::to_string(segments);
-    auto put = [&](double x, double y, double z) {
-        for (double c : {x, y, z}) m.positions.push_back(float(integer ? std::round(c) : c));
-    };
-    put(0, 0, radius);
-    for (uint32_t r = 1; r < rings; ++r) {
-        double theta = kPi * r / rings;
-        for (uint32_t s = 0; s < segments; ++s) {
-            double phi = 2 * kPi * s / segments;
-            put(radius * std::sin(theta) * std::cos(phi), radius * std::sin(theta) * std::sin(phi), radius * std::cos(theta));
-        }
-    }
-    put(0, 0, -radius);
-    uint32_t south = m.vertex_count() - 1;
-    auto ring = [&](uint32_t r, uint32_t s) { return 1 + (r - 1) * segments + s % segments; };
-    for (uint32_t s = 0; s < segments; ++s) {
-        m.indices.insert(m.indices.end(), {0, ring(1, s), ring(1, s + 1)});
-        m.indices.insert(m.indices.end(), {south, ring(rings - 1, s + 1), ring(rings - 1, s)});
-    }
-    for (uint32_t r = 1; r + 1 < rings; ++r)
-        for (uint32_t s = 0; s < segments; ++s) {
-            uint32_t a = ring(r, s), b = ring(r, s + 1), c = ring(r + 1, s), d = ring(r + 1, s + 1);
-            m.indices.insert(m.indices.end(), {a, c, d, a, d, b});
-        }
-    return m;
-}
 
 // The octahedron |x| + |y| + |z| = n, each face cut into n^2 triangles with integer corners: a
 // closed mesh whose faces are tilted planes.
@@ -685,6 +657,35 @@ HardSet coplanar_overlap_set(size_t count, Rng &rng) {
 }
 
 }  // namespace
+
+Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer) {
+    Mesh m;
+    m.name = std::string(integer ? "int_sphere_" : "sphere_") + std::to_string(rings) + "x" + std::to_string(segments);
+    auto put = [&](double x, double y, double z) {
+        for (double c : {x, y, z}) m.positions.push_back(float(integer ? std::round(c) : c));
+    };
+    put(0, 0, radius);
+    for (uint32_t r = 1; r < rings; ++r) {
+        double theta = kPi * r / rings;
+        for (uint32_t s = 0; s < segments; ++s) {
+            double phi = 2 * kPi * s / segments;
+            put(radius * std::sin(theta) * std::cos(phi), radius * std::sin(theta) * std::sin(phi), radius * std::cos(theta));
+        }
+    }
+    put(0, 0, -radius);
+    uint32_t south = m.vertex_count() - 1;
+    auto ring = [&](uint32_t r, uint32_t s) { return 1 + (r - 1) * segments + s % segments; };
+    for (uint32_t s = 0; s < segments; ++s) {
+        m.indices.insert(m.indices.end(), {0, ring(1, s), ring(1, s + 1)});
+        m.indices.insert(m.indices.end(), {south, ring(rings - 1, s + 1), ring(rings - 1, s)});
+    }
+    for (uint32_t r = 1; r + 1 < rings; ++r)
+        for (uint32_t s = 0; s < segments; ++s) {
+            uint32_t a = ring(r, s), b = ring(r, s + 1), c = ring(r + 1, s), d = ring(r + 1, s + 1);
+            m.indices.insert(m.indices.end(), {a, c, d, a, d, b});
+        }
+    return m;
+}
 
 // ---------------------------------------------------------------------------------------------
 

@@ -21,6 +21,10 @@ namespace kt {
 // those takes a few seconds; files that are missing or open are skipped silently.
 std::vector<Mesh> closed_meshes(bool include_shared);
 
+// A closed UV sphere centred at the origin: single-vertex poles, `rings` bands of `segments`
+// quads (two triangles each); integer: every coordinate rounded to a whole number.
+Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer);
+
 // True when every edge, with vertices matched by equal coordinates (as the watertight test
 // matches them), belongs to exactly two triangles and no triangle has zero area. Otherwise false,
 // with the reason in *why when given.

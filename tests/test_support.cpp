@@ -1,5 +1,6 @@
 #include "test_support.hpp"
 
+#include "hard_cases.hpp"
 #include "timing.hpp"
 
 #include <catch2/catch.hpp>
@@ -72,34 +73,7 @@ Mesh grid(uint32_t nx, uint32_t ny, uint32_t seed) {
     return m;
 }
 
-Mesh sphere(uint32_t rings, uint32_t segments, double radius) {
-    Mesh m;
-    m.name = "sphere_" + std::to_string(rings) + "x" + std::to_string(segments);
-    // Poles are single vertices so the surface is closed: every edge is shared by two triangles.
-    m.positions.insert(m.positions.end(), {0.0f, 0.0f, float(radius)});
-    for (uint32_t r = 1; r < rings; ++r) {
-        double theta = M_PI * r / rings;
-        for (uint32_t s = 0; s < segments; ++s) {
-            double phi = 2 * M_PI * s / segments;
-            m.positions.push_back(float(radius * std::sin(theta) * std::cos(phi)));
-            m.positions.push_back(float(radius * std::sin(theta) * std::sin(phi)));
-            m.positions.push_back(float(radius * std::cos(theta)));
-        }
-    }
-    m.positions.insert(m.positions.end(), {0.0f, 0.0f, float(-radius)});
-    uint32_t south = m.vertex_count() - 1;
-    auto ring_vertex = [&](uint32_t r, uint32_t s) { return 1 + (r - 1) * segments + s % segments; };
-    for (uint32_t s = 0; s < segments; ++s) {
-        m.indices.insert(m.indices.end(), {0, ring_vertex(1, s), ring_vertex(1, s + 1)});
-        m.indices.insert(m.indices.end(), {south, ring_vertex(rings - 1, s + 1), ring_vertex(rings - 1, s)});
-    }
-    for (uint32_t r = 1; r + 1 < rings; ++r)
-        for (uint32_t s = 0; s < segments; ++s) {
-            uint32_t a = ring_vertex(r, s), b = ring_vertex(r, s + 1), c = ring_vertex(r + 1, s), d = ring_vertex(r + 1, s + 1);
-            m.indices.insert(m.indices.end(), {a, c, d, a, d, b});
-        }
-    return m;
-}
+Mesh sphere(uint32_t rings, uint32_t segments, double radius) { return uv_sphere(rings, segments, radius, false); }
 
 Mesh translated(const Mesh &mesh, double dx, double dy, double dz) {
     Mesh m = mesh;
