@@ -58,13 +58,28 @@ def main():
     if not kd:
         sys.exit(f"plot_bench: {args.csv}: no kd-tree rows")
     meshes = sorted({r["Mesh"] for r in kd}, key=lambda m: int(next(r.get("Triangles", "0") for r in kd if r["Mesh"] == m) or 0))
-    elapsed = median_by(kd, lambda r: (r["Mesh"], int(r["MaxLeafSize"])), lambda r: float(r.get("TraceMs") or r["ElapsedMs"]))
+    builders = sorted({r.get("Builder", "median") for r in kd}, key=lambda b: (b != "median", b))
+    style = {b: ["-", "--", ":", "-."][i % 4] for i, b in enumerate(builders)}
+    colour = {m: f"C{i % 10}" for i, m in enumerate(meshes)}
+    # Leaf size 0 is "no tree" whatever the builder: one value per mesh, shared by every curve.
+    elapsed = median_by(kd, lambda r: (r["Mesh"], r.get("Builder", "median") if int(r["MaxLeafSize"]) else "", int(r["MaxLeafSize"])),
+                        lambda r: float(r.get("TraceMs") or r["ElapsedMs"]))
+
+    def curve(m, b, with_zero):
+        return sorted((leaf, ms) for (mesh, builder, leaf), ms in elapsed.items()
+                      if mesh == m and (builder == b or (with_zero and leaf == 0)))
+
+    def label(m, b):
+        return m if len(builders) == 1 else f"{m} ({b})"
 
     # 1. Trace time against max leaf size (leaf size 0, no tree, drawn at x = 0.5 on the log axis).
     fig, ax = plt.subplots(figsize=(8, 5))
     for m in meshes:
-        pts = sorted((leaf, ms) for (mesh, leaf), ms in elapsed.items() if mesh == m)
-        ax.plot([leaf if leaf else 0.5 for leaf, _ in pts], [ms for _, ms in pts], marker="o", ms=3, label=m)
+        for b in builders:
+            pts = curve(m, b, True)
+            if len(pts) > 1 or (pts and pts[0][0]):
+                ax.plot([leaf if leaf else 0.5 for leaf, _ in pts], [ms for _, ms in pts], marker="o", ms=3,
+                        color=colour[m], linestyle=style[b], label=label(m, b))
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
     ax.set_xlabel("max leaf size (0.5 = no tree)")
@@ -77,11 +92,14 @@ def main():
     # 2. Speedup over leaf size 0 (brute force).
     fig, ax = plt.subplots(figsize=(8, 5))
     for m in meshes:
-        base = elapsed.get((m, 0))
+        base = elapsed.get((m, "", 0))
         if not base:
             continue
-        pts = sorted((leaf, base / ms) for (mesh, leaf), ms in elapsed.items() if mesh == m and leaf > 0 and ms > 0)
-        ax.plot([leaf for leaf, _ in pts], [s for _, s in pts], marker="o", ms=3, label=m)
+        for b in builders:
+            pts = [(leaf, base / ms) for leaf, ms in curve(m, b, False) if leaf > 0 and ms > 0]
+            if pts:
+                ax.plot([leaf for leaf, _ in pts], [s for _, s in pts], marker="o", ms=3, color=colour[m],
+                        linestyle=style[b], label=label(m, b))
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
     ax.set_xlabel("max leaf size")
@@ -94,7 +112,9 @@ def main():
     # 3. Speed against error: MRays/s against mismatches per reference ray, kdrt and Embree.
     fig, ax = plt.subplots(figsize=(8, 5))
     worst = 0.0
-    for label, subset, marker in (("kdrt (best leaf size per mesh)", kd, "o"), ("Embree 3", peer, "s")):
+    groups = [(f"kdrt {b} (best leaf size per mesh)", [r for r in kd if r.get("Builder", "median") == b], "o^vD"[i % 4])
+              for i, b in enumerate(builders)]
+    for name, subset, marker in groups + [("Embree 3", peer, "s")]:
         xs, ys, names = [], [], []
         for m in meshes:
             mine = [r for r in subset if r["Mesh"] == m and r.get("MRaysPerSec")]
@@ -106,9 +126,9 @@ def main():
             ys.append(float(best["MRaysPerSec"]))
             names.append(m)
         if xs:
-            ax.scatter(xs, ys, marker=marker, label=label)
-            for x, y, name in zip(xs, ys, names):
-                ax.annotate(name, (x, y), textcoords="offset points", xytext=(6, -3), fontsize=7)
+            ax.scatter(xs, ys, marker=marker, label=name)
+            for x, y, mesh in zip(xs, ys, names):
+                ax.annotate(mesh, (x, y), textcoords="offset points", xytext=(6, -3), fontsize=7)
             worst = max(worst, max(xs))
     # Error rates are 0 or tiny fractions: linear near 0, logarithmic above 1e-5.
     ax.set_xscale("symlog", linthresh=1e-5)
