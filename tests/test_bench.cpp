@@ -85,7 +85,7 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
     CHECK_FALSE(parse({"--builder", "sah,"}, opt, error));
 }
 
-TEST_CASE("--intersector and --accuracy parse, with their defaults", "[bench]") {
+TEST_CASE("bench options --intersector and --accuracy parse, with their defaults", "[bench]") {
     kb::Options opt;
     std::string error;
     REQUIRE(parse({}, opt, error));
