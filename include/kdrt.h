@@ -1580,13 +1580,19 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
     if (normal[0] * dir[0] + normal[1] * dir[1] + normal[2] * dir[2] < 0.0f) largest = -largest;
     for (a = 0; a < 3; ++a) n[a] = normal[a] / largest;
     for (a = 0; a < 3; ++a) {
-        int32_t bits, step = (int32_t)(int_scale * n[a]);
+        int32_t step = (int32_t)(int_scale * n[a]);
+        uint32_t bits;
         float moved;
+        if (kdrt__abs(point[a]) < origin) {
+            out[a] = point[a] + float_scale * n[a];
+            continue;
+        }
+        /* Adding k to the bits of a float moves it k ulps away from 0 (towards 0 for negative k).
+           Unsigned, so the arithmetic wraps instead of overflowing. */
         memcpy(&bits, &point[a], sizeof bits);
-        /* Stepping the integer bits moves away from 0 for positive steps of positive values. */
-        bits += point[a] < 0.0f ? -step : step;
+        bits += (uint32_t)(point[a] < 0.0f ? -step : step);
         memcpy(&moved, &bits, sizeof moved);
-        out[a] = kdrt__abs(point[a]) < origin ? point[a] + float_scale * n[a] : moved;
+        out[a] = kdrt__finite(moved) ? moved : point[a]; /* next to FLT_MAX: nowhere to go */
     }
 }
 

@@ -16,10 +16,12 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -397,4 +399,36 @@ TEST_CASE("far from the origin: spawned rays never hit the triangle they leave",
     // Without the offset, far-away secondary rays do hit their own triangle: the test can fail.
     CHECK(naive_far[0] > 0);
     CHECK(naive_far[1] > 0);
+}
+
+TEST_CASE("spawn: kdrt_offset_ray_origin moves a point off its surface towards dir at any magnitude, and takes odd input", "[hard][far]") {
+    const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+    const float normal[3] = {0.6f, -0.8f, 0.0f};
+    for (float scale : {0.0f, -0.0f, 1e-3f, -1e-3f, 0.03f, 1.0f, -1.0f, 1e3f, -1e5f, 1e7f, -1e7f, 3e38f, -3e38f}) {
+        const float point[3] = {scale, -scale, 0.5f * scale};
+        for (float side : {1.0f, -1.0f}) {
+            const float dir[3] = {side * normal[0], side * normal[1], 0.25f};
+            float out[3];
+            kdrt_offset_ray_origin(point, normal, dir, out);
+            INFO("point magnitude " << scale << ", side " << side << ": out " << out[0] << " " << out[1] << " " << out[2]);
+            double along = 0;
+            for (int a = 0; a < 3; ++a) {
+                CHECK(std::isfinite(out[a]));
+                along += (double(out[a]) - point[a]) * normal[a];
+            }
+            // Moved off the plane through point, to dir's side (next to FLT_MAX nothing can move).
+            if (std::fabs(scale) < 1e38f) CHECK(along * side > 0);
+            else CHECK(along * side >= 0);
+            // By a few hundred ulps at most: relative to the point's magnitude.
+            for (int a = 0; a < 3; ++a)
+                CHECK(std::fabs(double(out[a]) - point[a]) <= std::max(1.0 / 65536, 512 * std::fabs(double(point[a])) * 0x1p-23));
+        }
+    }
+    // Odd input leaves the point where it is: no normal, a NaN or infinite normal.
+    const float p[3] = {1, 2, 3}, d[3] = {0, 0, 1};
+    for (const std::array<float, 3> &bad : {std::array<float, 3>{0, 0, 0}, std::array<float, 3>{nan, 1, 0}, std::array<float, 3>{0, inf, 0}}) {
+        float out[3];
+        kdrt_offset_ray_origin(p, bad.data(), d, out);
+        CHECK((out[0] == 1 && out[1] == 2 && out[2] == 3));
+    }
 }
