@@ -1,4 +1,5 @@
 #include "hard_cases.hpp"
+#include "random.hpp"
 #include "timing.hpp"
 
 #include <algorithm>
@@ -23,25 +24,6 @@ namespace {
 const float kInf = std::numeric_limits<float>::infinity();
 const double kPi = 3.14159265358979323846;
 
-// splitmix64: the same numbers on every standard library.
-struct Rng {
-    uint64_t state;
-    explicit Rng(uint64_t seed) : state(0x9E3779B97F4A7C15ull ^ (seed * 0xD1B54A32D192ED03ull)) {}
-    uint64_t next() {
-        state += 0x9E3779B97F4A7C15ull;
-        uint64_t z = state;
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
-    double range(double lo, double hi) { return lo + (hi - lo) * uniform(); }
-    uint32_t below(uint32_t n) { return uint32_t(uniform() * n); }
-    void direction(double d[3]) {
-        double z = range(-1, 1), phi = range(0, 2 * kPi), r = std::sqrt(std::max(0.0, 1 - z * z));
-        d[0] = r * std::cos(phi), d[1] = r * std::sin(phi), d[2] = z;
-    }
-};
 
 double dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 void cross(const double a[3], const double b[3], double out[3]) {
@@ -504,18 +486,24 @@ void parallel_sets(size_t count, Rng &rng, HardSet &in_plane, HardSet &parallel)
     }
 }
 
+// A random unit direction and a random unit vector perpendicular to it.
+void random_frame(Rng &rng, double along[3], double side[3]) {
+    double tmp[3];
+    rng.direction(along);
+    rng.direction(tmp);
+    cross(along, tmp, side);
+    double length = norm(side);
+    for (int a = 0; a < 3; ++a) side[a] /= length;
+}
+
 HardSet grazing_skinny_set(size_t count, Rng &rng) {
     HardSet set{"grazing_skinny", {}, {}};
     set.mesh.name = "skinny_triangles";
     std::vector<std::array<double, 9>> tris;
     for (int i = 0; i < 64; ++i) {
         double c[3] = {rng.range(0, 60), rng.range(0, 60), rng.range(0, 60)};
-        double along[3], side[3], tmp[3];
-        rng.direction(along);
-        rng.direction(tmp);
-        cross(along, tmp, side);
-        double sl = norm(side);
-        for (double &x : side) x /= sl;
+        double along[3], side[3];
+        random_frame(rng, along, side);
         double length = rng.range(5, 20), width = length * std::pow(10.0, -rng.range(2, 3));  // aspect 100 to 1000
         double p[3][3];
         for (int a = 0; a < 3; ++a) {
@@ -566,12 +554,8 @@ HardSet needles_tiny_set(size_t count, Rng &rng) {
     std::vector<std::array<double, 3>> targets;
     for (int i = 0; i < 96; ++i) {
         double c[3] = {rng.range(1, 10), rng.range(1, 10), rng.range(1, 10)};
-        double along[3], side[3], tmp[3];
-        rng.direction(along);
-        rng.direction(tmp);
-        cross(along, tmp, side);
-        double sl = norm(side);
-        for (double &x : side) x /= sl;
+        double along[3], side[3];
+        random_frame(rng, along, side);
         double p[3][3];
         if (i % 2 == 0) {  // needle: length 1 to 4, width 1e-6 to 1e-4 of it
             double length = rng.range(1, 4), width = length * std::pow(10.0, -rng.range(4, 6));

@@ -1,6 +1,7 @@
 #include "test_support.hpp"
 
 #include "hard_cases.hpp"
+#include "random.hpp"
 #include "timing.hpp"
 
 #include <catch2/catch.hpp>
@@ -17,31 +18,6 @@
 #include <thread>
 
 namespace kt {
-
-namespace {
-
-// Small, portable generator (the same numbers on every standard library).
-struct Rng {
-    uint64_t state;
-    explicit Rng(uint32_t seed) : state(0x9E3779B97F4A7C15ull ^ (uint64_t(seed) * 0xD1B54A32D192ED03ull)) {}
-    uint64_t next() {
-        state += 0x9E3779B97F4A7C15ull;  // splitmix64
-        uint64_t z = state;
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
-    double range(double lo, double hi) { return lo + (hi - lo) * uniform(); }
-};
-
-void unit_direction(Rng &rng, double d[3]) {
-    double z = rng.range(-1, 1), phi = rng.range(0, 2 * M_PI), r = std::sqrt(std::max(0.0, 1 - z * z));
-    d[0] = r * std::cos(phi), d[1] = r * std::sin(phi), d[2] = z;
-}
-
-
-}  // namespace
 
 Mesh random_soup(uint32_t triangles, uint32_t seed) {
     Rng rng(seed);
@@ -150,10 +126,10 @@ std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t s
         double o[3], d[3];
         if (i % 2 == 0) {
             for (int a = 0; a < 3; ++a) o[a] = c[a] + rng.range(-0.55, 0.55) * ext[a];
-            unit_direction(rng, d);
+            rng.direction(d);
         } else {
             double u[3];
-            unit_direction(rng, u);
+            rng.direction(u);
             for (int a = 0; a < 3; ++a) {
                 o[a] = c[a] + u[a] * diag;
                 double target = c[a] + rng.range(-0.5, 0.5) * ext[a];
