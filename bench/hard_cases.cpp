@@ -903,8 +903,7 @@ ErrorCounts count_mismatches(const kdrt_tree *tree, const Oracle &oracle, const 
     Agreement tally;
     for (size_t i = 0; i < rays.size() && i < refs.size(); ++i) {
         check_hit(oracle, refs[i], rays[i], hits[i], tally);
-        if (hits[i].triangle != KDRT_INVALID_ID && std::isnan(oracle.possible_t(rays[i], hits[i].triangle)) &&
-            !oracle.in_plane_contact(rays[i], hits[i].triangle, hits[i].t))
+        if (hits[i].triangle != KDRT_INVALID_ID && std::isnan(oracle.expected_t(rays[i], hits[i].triangle, hits[i].t)))
             ++counts.false_hits;
     }
     counts.rays = tally.rays;

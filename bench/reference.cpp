@@ -187,6 +187,12 @@ bool Oracle::in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) 
     return t >= blo - tol && t <= bhi + tol;
 }
 
+double Oracle::expected_t(const kdrt_ray &ray, uint32_t triangle, double kdrt_t) const {
+    double t = possible_t(ray, triangle);
+    if (std::isnan(t) && in_plane_contact(ray, triangle, kdrt_t)) t = kdrt_t;  // see kdrt.h
+    return t;
+}
+
 void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, const kdrt_hit &h, Agreement &tally) {
     bool hit = h.triangle != KDRT_INVALID_ID;
     std::ostringstream why;
@@ -195,8 +201,7 @@ void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, 
         if (ref.sure_hit) why << "kdrt missed, reference hits triangle " << ref.sure_triangle << " at t=" << ref.sure_t;
         else ++tally.exact;  // near-edge misses are fine either way; none is surely hit
     } else {
-        double pt = oracle.possible_t(ray, h.triangle);
-        if (std::isnan(pt) && oracle.in_plane_contact(ray, h.triangle, h.t)) pt = h.t;  // see kdrt.h
+        double pt = oracle.expected_t(ray, h.triangle, h.t);
         if (std::isnan(pt)) why << "kdrt hit triangle " << h.triangle << " at t=" << h.t << ", which the ray misses";
         else if (std::fabs(h.t - pt) > oracle.t_tolerance(ray, pt, h.triangle)) why << "kdrt t=" << h.t << " on triangle " << h.triangle << ", reference t=" << pt;
         else if (ref.sure_hit && h.t > ref.sure_t + oracle.t_tolerance(ray, ref.sure_t, ref.sure_triangle))

@@ -42,6 +42,10 @@ public:
     // double precision), its line meets the triangle, and `t` is where the ray is within the
     // triangle's bounding box: what kdrt.h promises of such a hit (see there).
     bool in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) const;
+    // The t a kdrt hit on this triangle reported as kdrt_t should be near: possible_t(), or
+    // kdrt_t itself for an in-plane contact; NaN when no such hit is possible. What every check
+    // of a kdrt hit asks.
+    double expected_t(const kdrt_ray &ray, uint32_t triangle, double kdrt_t) const;
     // Tolerance on t for a well-conditioned hit, and for a hit on a given triangle.
     double t_tolerance(const kdrt_ray &ray, double t) const;
     double t_tolerance(const kdrt_ray &ray, double t, uint32_t triangle) const;
