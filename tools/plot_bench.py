@@ -30,6 +30,17 @@ def median_by(rows, key, value):
     return {k: statistics.median(v) for k, v in groups.items()}
 
 
+def finish_log_log(ax, xlabel, ylabel, title):
+    """Both axes logarithmic (x in powers of two: leaf sizes), labels, grid and legend."""
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+
+
 def save(fig, prefix, name):
     for ext in ("png", "svg"):
         fig.savefig(f"{prefix}-{name}.{ext}", dpi=120, bbox_inches="tight")
@@ -80,13 +91,8 @@ def main():
             if len(pts) > 1 or (pts and pts[0][0]):
                 ax.plot([leaf if leaf else 0.5 for leaf, _ in pts], [ms for _, ms in pts], marker="o", ms=3,
                         color=colour[m], linestyle=style[b], label=label(m, b))
-    ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xlabel("max leaf size (0.5 = no tree)")
-    ax.set_ylabel("trace time of the frame, ms")
-    ax.set_title("kdrt-bench: frame time against max leaf size")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    finish_log_log(ax, "max leaf size (0.5 = no tree)", "trace time of the frame, ms",
+                   "kdrt-bench: frame time against max leaf size")
     save(fig, prefix, "elapsed")
 
     # 2. Speedup over leaf size 0 (brute force).
@@ -100,13 +106,7 @@ def main():
             if pts:
                 ax.plot([leaf for leaf, _ in pts], [s for _, s in pts], marker="o", ms=3, color=colour[m],
                         linestyle=style[b], label=label(m, b))
-    ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xlabel("max leaf size")
-    ax.set_ylabel("speedup over no tree (leaf size 0)")
-    ax.set_title("kdrt-bench: speedup of the kd-tree")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    finish_log_log(ax, "max leaf size", "speedup over no tree (leaf size 0)", "kdrt-bench: speedup of the kd-tree")
     save(fig, prefix, "speedup")
 
     # 3. Speed against error: MRays/s against mismatches per reference ray, kdrt and Embree.
