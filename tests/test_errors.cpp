@@ -784,6 +784,17 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
             fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
         }
     }
+    {  // large enough for the SAH build to cut its top into tasks, run here in reverse order
+        kt::Mesh soup = kt::random_soup(9000, 19);
+        kdrt_triangles sv = soup.view();
+        kdrt_build_options o = options_with_leaf(4);
+        o.builder = KDRT_BUILDER_SAH;
+        o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
+            for (uint32_t i = count; i-- > 0;) task(data, i);
+        };
+        INFO("SAH in tasks");
+        fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+    }
 }
 
 TEST_CASE("alloc: a build failing on a bad triangle frees everything", "[errors][alloc]") {
