@@ -105,11 +105,12 @@
      node with more than 128 triangles is binned: 32 equal bins per axis, the planes between
      them costed from counts of the triangles' box faces, O(n). Below that every face of every
      triangle's box is a candidate: the start, end and planar events are sorted and swept
-     (O(n log n) per node), on the axis 8 bins find best (on all three below 17 triangles). A triangle cut by the plane is clipped to each child's box
-     (perfect splits), so it goes only where some of it lies. A node becomes a leaf when it
-     holds at most max_leaf_size triangles, at max_depth, or when no split is cheaper than
-     testing all its triangles (the costs are options). It builds slower than the median and
-     traces several times faster.
+     (O(n log n) per node), on the axis 8 bins find best (on all three below 17 triangles).
+     A triangle cut by the plane is clipped to each child's box (perfect splits), so it goes
+     only where some of it lies. A node becomes a leaf when it holds at most max_leaf_size
+     triangles, at max_depth, or when no split is cheaper than testing all its triangles (the
+     costs are options). It builds slower than the median and traces several times faster:
+     it is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread; the subtrees below are independent tasks handed to
      options.scheduler, then joined in depth-first order. The cut depends only on the input,
@@ -260,7 +261,7 @@ typedef struct kdrt_scheduler {
 } kdrt_scheduler;
 
 typedef enum kdrt_builder {
-    KDRT_BUILDER_DEFAULT = 0, /* the best builder available: currently the median builder */
+    KDRT_BUILDER_DEFAULT = 0, /* the best builder available: currently KDRT_BUILDER_SAH */
     KDRT_BUILDER_MEDIAN = 1,  /* the original's median-centroid kd-tree (see THE TREE) */
     KDRT_BUILDER_SAH = 2      /* surface area heuristic with perfect splits (see THE TREE) */
 } kdrt_builder;
@@ -788,7 +789,7 @@ KDRT_API kdrt_build_options kdrt_default_build_options(void)
 {
     kdrt_build_options o;
     memset(&o, 0, sizeof o);
-    o.builder = KDRT_BUILDER_MEDIAN;
+    o.builder = KDRT_BUILDER_SAH;
     o.max_leaf_size = KDRT_DEFAULT_MAX_LEAF_SIZE;
     return o;
 }
@@ -1609,7 +1610,7 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
         /* No tree: one leaf holding every usable triangle, tested in order. */
         r = kdrt__reserve(b.allocator, (void **)&b.nodes, &b.node_capacity, 1, sizeof(kdrt__node));
         if (r == KDRT_SUCCESS) b.node_count = 1, r = kdrt__emit_leaf(&b, 0, valid, n, 0);
-    } else if (opt.builder == KDRT_BUILDER_SAH) {
+    } else if (opt.builder == KDRT_BUILDER_SAH || opt.builder == KDRT_BUILDER_DEFAULT) {
         kdrt__ref *refs = (kdrt__ref *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__ref));
         if (!refs) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
         for (i = 0; i < n; ++i) {
