@@ -68,7 +68,8 @@ std::string usage() {
            "\n"
            "Builds a kd-tree over each mesh for each max leaf size and traces the benchmark frame:\n"
            "the mesh scaled to fill the view in front of a back wall, one primary ray per pixel,\n"
-           "closest hit. Writes Mesh;MaxLeafSize;ElapsedMs;... as CSV, one row per repetition.\n"
+           "closest hit. Writes Mesh;MaxLeafSize;ElapsedMs;... as CSV, one row per repetition;\n"
+           "SahCost is the tree's SAH cost (kdrt_tree_stats.sah_cost, with the build's costs).\n"
            "Meshes: OFF, OBJ, PLY, STL, glTF files, or folders of them. Default: the original's\n"
            "meshes in ../shared/meshes/seed when present, else generated ones.\n"
            "\n"
@@ -372,7 +373,7 @@ size_t count_mismatches(const kt::Oracle &oracle, const std::vector<kt::Referenc
 
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
-           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector";
+           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost";
 }
 
 std::string csv_row(const Row &row) {
@@ -392,7 +393,12 @@ std::string csv_row(const Row &row) {
     }
     n = std::snprintf(buf, sizeof buf, "%zu;%zu;", row.mismatches, row.reference_rays);
     line.append(buf, size_t(n));
-    return line + row.intersector;
+    line += row.intersector + ";";
+    if (row.has_tree_stats) {
+        n = std::snprintf(buf, sizeof buf, "%.3f", row.stats.sah_cost);
+        line.append(buf, size_t(n));
+    }
+    return line;
 }
 
 // ---- kdrt-bench --accuracy ----

@@ -328,7 +328,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     REQUIRE(columns == std::vector<std::string>{"Mesh", "MaxLeafSize", "ElapsedMs", "Builder", "Triangles", "BuildMs",
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
-                                                "Intersector"});
+                                                "Intersector", "SahCost"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
@@ -344,6 +344,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     row.stats.max_depth = 9;
     row.stats.triangle_refs = 808;
     row.stats.bytes = 4096;
+    row.stats.sah_cost = 123.45678;
     row.mismatches = 0;
     row.reference_rays = 20000;
     const std::vector<std::string> f = split(kb::csv_row(row), ';');
@@ -363,9 +364,10 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     CHECK(f[12] == "4096");
     CHECK(f[13] == "0");
     CHECK(f[14] == "20000");
-    CHECK(f[15] == "watertight");  // the default; appended last so the columns before keep their places
+    CHECK(f[15] == "watertight");  // the default; new columns go last so the columns before keep their places
+    CHECK(f[16] == "123.457");
     row.intersector = kb::intersector_name(KDRT_INTERSECTOR_FAST);
-    CHECK(split(kb::csv_row(row), ';').back() == "fast");
+    CHECK(split(kb::csv_row(row), ';')[15] == "fast");
 
     row.builder = "embree";
     row.max_leaf_size = -1;
@@ -373,9 +375,9 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     const std::vector<std::string> e = split(kb::csv_row(row), ';');
     REQUIRE(e.size() == columns.size());
     CHECK(e[1] == "-1");
-    for (int c = 8; c <= 12; ++c) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
+    for (int c : {8, 9, 10, 11, 12, 16}) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
     row.intersector.clear();  // Embree's own triangle test
-    CHECK(split(kb::csv_row(row), ';').back().empty());
+    CHECK(split(kb::csv_row(row), ';')[15].empty());
 }
 
 TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "[bench]") {
