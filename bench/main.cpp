@@ -205,9 +205,10 @@ int main(int argc, char **argv) {
     const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
     if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, out, progress, failures);
 
+    const std::vector<kb::BuildVariant> variants = kb::build_variants(opt);
     for (const Input &in : inputs)
         progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() *
-                                            opt.builders.size() +
+                                            variants.size() +
                                         opt.compare_embree);
 
     std::fprintf(out, "%s\n", kb::csv_header().c_str());
@@ -241,12 +242,11 @@ int main(int argc, char **argv) {
         row.rays = rays.size();
         row.reference_rays = sample.size();
         std::vector<kdrt_hit> hits(rays.size());
-        for (const std::string &builder : opt.builders)
+        for (const kb::BuildVariant &variant : variants)
         for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
             for (kdrt_intersector intersector : intersectors)
                 for (unsigned rep = 0; rep < opt.repeat; ++rep) {
-                    kdrt_build_options options = kdrt_default_build_options();
-                    options.builder = builder == "sah" ? KDRT_BUILDER_SAH : KDRT_BUILDER_MEDIAN;
+                    kdrt_build_options options = variant.options;
                     options.max_leaf_size = leaf;
                     options.intersector = intersector;
                     kdrt_tree *tree = nullptr;
@@ -261,14 +261,16 @@ int main(int argc, char **argv) {
                     row.trace_ms = kb::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
                     kdrt_tree_get_stats(tree, &row.stats);
                     kdrt_tree_free(tree);
-                    row.builder = builder;
+                    row.builder = variant.builder;
+                    row.sah_costs = variant.sah_costs;
                     row.intersector = kb::intersector_name(intersector);
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
                     row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
                     std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
                     std::fflush(out);  // an interrupted run keeps every row written so far
-                    progress.step(in.label + " " + builder + " leaf " + std::to_string(leaf) + " " + row.intersector);
+                    progress.step(in.label + " " + variant.builder + (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
+                                  " leaf " + std::to_string(leaf) + " " + row.intersector);
                 }
         if (opt.compare_embree)
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
@@ -279,6 +281,7 @@ int main(int argc, char **argv) {
                     break;
                 }
                 row.builder = "embree";
+                row.sah_costs.clear();
                 row.intersector.clear();  // Embree's own test
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;
