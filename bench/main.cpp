@@ -62,28 +62,13 @@ std::vector<std::string> expand_inputs(const std::vector<std::string> &args) {
     return files;
 }
 
-// Stand-ins when no mesh folder is around: a sphere and a torus of a few thousand triangles.
+// Stand-ins when no mesh folder is around: a sphere and a torus of about 9,000 triangles each.
 std::vector<Input> generated_inputs() {
-    std::vector<Input> inputs;
-    for (int shape = 0; shape < 2; ++shape) {
-        Input in;
-        in.label = shape == 0 ? "GENERATED_SPHERE" : "GENERATED_TORUS";
-        const uint32_t rings = 48, segments = 96;
-        for (uint32_t r = 0; r <= rings; ++r)
-            for (uint32_t s = 0; s <= segments; ++s) {
-                double u = 2 * M_PI * s / segments, v = (shape == 0 ? M_PI : 2 * M_PI) * r / rings;
-                double x, y, z;
-                if (shape == 0) x = std::sin(v) * std::cos(u), y = std::cos(v), z = std::sin(v) * std::sin(u);
-                else x = (1 + 0.4 * std::cos(v)) * std::cos(u), y = 0.4 * std::sin(v), z = (1 + 0.4 * std::cos(v)) * std::sin(u);
-                in.mesh.positions.insert(in.mesh.positions.end(), {float(x), float(y), float(z)});
-            }
-        for (uint32_t r = 0; r < rings; ++r)
-            for (uint32_t s = 0; s < segments; ++s) {
-                uint32_t a = r * (segments + 1) + s, b = a + 1, c = a + segments + 1, d = c + 1;
-                in.mesh.indices.insert(in.mesh.indices.end(), {a, c, d, a, d, b});
-            }
-        inputs.push_back(std::move(in));
-    }
+    std::vector<Input> inputs(2);
+    inputs[0].label = "GENERATED_SPHERE";
+    inputs[0].mesh = kt::uv_sphere(48, 96, 1.0, false);
+    inputs[1].label = "GENERATED_TORUS";
+    inputs[1].mesh = kt::torus(96, 48, 1.0, 0.4);
     return inputs;
 }
 
