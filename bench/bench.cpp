@@ -27,6 +27,48 @@ struct Rng {
     double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }
 };
 
+// "KT:KI:EB,KT:KI:EB,...": K_T and K_I finite and above 0, EB in (0, 1). kdrt reads a zero cost
+// or bonus as "use the default", so 0 is refused rather than silently replaced.
+bool parse_sah_costs(const std::string &text, std::vector<SahCosts> &out, std::string &error) {
+    out.clear();
+    size_t start = 0;
+    while (true) {
+        size_t comma = text.find(',', start);
+        std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        float v[3];
+        size_t field_start = 0;
+        int fields = 0;
+        for (; fields < 3; ++fields) {
+            size_t colon = item.find(':', field_start);
+            if ((fields < 2) != (colon != std::string::npos)) break;  // exactly two colons
+            std::string field = item.substr(field_start, colon == std::string::npos ? std::string::npos : colon - field_start);
+            if (field.empty() || std::isspace(static_cast<unsigned char>(field[0]))) break;
+            char *end = nullptr;
+            errno = 0;
+            double d = std::strtod(field.c_str(), &end);
+            if (errno != 0 || *end != '\0' || !(d == d)) break;
+            v[fields] = float(d);
+            field_start = colon + 1;
+        }
+        if (fields < 3) {
+            error = "--sah-costs wants KT:KI:EB triples (traversal cost, intersection cost, empty bonus) separated "
+                    "by commas, e.g. 15:20:0.2,1:80:0.5; got '" + text + "'";
+            return false;
+        }
+        if (!(v[0] > 0 && v[0] <= 1e6f && v[1] > 0 && v[1] <= 1e6f && v[2] > 0 && v[2] < 1)) {
+            error = "--sah-costs: in '" + item + "', KT and KI must be above 0 (at most 1e6) and EB between 0 and 1, "
+                    "both excluded (kdrt reads 0 as its default)";
+            return false;
+        }
+        SahCosts c;
+        c.traversal = v[0], c.intersection = v[1], c.empty_bonus = v[2];
+        out.push_back(c);
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+    }
+    return true;
+}
+
 bool parse_unsigned(const std::string &text, unsigned long long max, unsigned long long &out) {
     if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0]))) return false;
     char *end = nullptr;
@@ -38,6 +80,36 @@ bool parse_unsigned(const std::string &text, unsigned long long max, unsigned lo
 }
 
 }  // namespace
+
+std::string sah_costs_label(const SahCosts &costs) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%g:%g:%g", double(costs.traversal), double(costs.intersection), double(costs.empty_bonus));
+    return buf;
+}
+
+std::vector<BuildVariant> build_variants(const Options &opt) {
+    std::vector<BuildVariant> variants;
+    const std::vector<SahCosts> triples = opt.sah_costs.empty() ? std::vector<SahCosts>(1) : opt.sah_costs;
+    for (const std::string &builder : opt.builders) {
+        BuildVariant v;
+        v.builder = builder;
+        v.options = kdrt_default_build_options();
+        if (builder != "sah") {
+            v.options.builder = KDRT_BUILDER_MEDIAN;
+            variants.push_back(v);
+            continue;
+        }
+        v.options.builder = KDRT_BUILDER_SAH;
+        for (const SahCosts &c : triples) {
+            v.options.sah_traversal_cost = c.traversal;
+            v.options.sah_intersection_cost = c.intersection;
+            v.options.sah_empty_bonus = c.empty_bonus;
+            v.sah_costs = sah_costs_label(c);
+            variants.push_back(v);
+        }
+    }
+    return variants;
+}
 
 std::vector<uint32_t> default_leaf_sizes() {
     return {0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024};
@@ -68,7 +140,8 @@ std::string usage() {
            "\n"
            "Builds a kd-tree over each mesh for each max leaf size and traces the benchmark frame:\n"
            "the mesh scaled to fill the view in front of a back wall, one primary ray per pixel,\n"
-           "closest hit. Writes Mesh;MaxLeafSize;ElapsedMs;... as CSV, one row per repetition.\n"
+           "closest hit. Writes Mesh;MaxLeafSize;ElapsedMs;... as CSV, one row per repetition;\n"
+           "SahCost is the tree's SAH cost (kdrt_tree_stats.sah_cost, with the build's costs).\n"
            "Meshes: OFF, OBJ, PLY, STL, glTF files, or folders of them. Default: the original's\n"
            "meshes in ../shared/meshes/seed when present, else generated ones.\n"
            "\n"
@@ -82,6 +155,10 @@ std::string usage() {
            "                      first size at or above its triangle count)\n"
            "  --builder LIST      median (the original's median split, the default), sah\n"
            "                      (surface area heuristic), or both: median,sah\n"
+           "  --sah-costs LIST    SAH cost constants KT:KI:EB (traversal cost, intersection cost,\n"
+           "                      empty bonus; KT, KI > 0, 0 < EB < 1), comma-separated: the SAH\n"
+           "                      builder runs once per triple, named in the SahCosts column\n"
+           "                      (default: kdrt.h's, 15:20:0.2; pbrt-v3's are 1:80:0.5)\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"
@@ -110,7 +187,7 @@ std::string usage() {
            "kdrt_spawn_ray starts from the sample's hits (SpawnedRays: reflected, through and two\n"
            "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
            "for the same rays started exactly at the hit point, with no offset.\n"
-           "--leaf-sizes, --rays and --compare do not apply.\n";
+           "--leaf-sizes, --rays, --compare and --sah-costs do not apply.\n";
 }
 
 bool parse_options(int argc, const char *const *argv, Options &out, std::string &error) {
@@ -130,7 +207,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         };
         std::string v;
         unsigned long long n = 0;
-        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare") csv_only_option = arg;
+        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs") csv_only_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
         size_given = size_given || arg == "--size";
         if (arg == "--help" || arg == "-h") {
@@ -217,6 +294,8 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
                 if (comma == std::string::npos) break;
                 start = comma + 1;
             }
+        } else if (arg == "--sah-costs") {
+            if (!value(v) || !parse_sah_costs(v, out.sah_costs, error)) return false;
         } else if (arg == "--rays") {
             if (!value(v)) return false;
             if (v == "primary") out.rays = RayKind::primary;
@@ -248,6 +327,10 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     }
     if (out.accuracy && !csv_only_option.empty()) {
         error = csv_only_option + " does not apply to --accuracy (every set is traced once, median builder, default leaf size)";
+        return false;
+    }
+    if (!out.sah_costs.empty() && std::find(out.builders.begin(), out.builders.end(), "sah") == out.builders.end()) {
+        error = "--sah-costs applies only to the SAH builder: add --builder sah (or median,sah)";
         return false;
     }
     if (out.accuracy && !repeat_given) out.repeat = 3;
@@ -372,7 +455,7 @@ size_t count_mismatches(const kt::Oracle &oracle, const std::vector<kt::Referenc
 
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
-           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector";
+           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts";
 }
 
 std::string csv_row(const Row &row) {
@@ -392,7 +475,12 @@ std::string csv_row(const Row &row) {
     }
     n = std::snprintf(buf, sizeof buf, "%zu;%zu;", row.mismatches, row.reference_rays);
     line.append(buf, size_t(n));
-    return line + row.intersector;
+    line += row.intersector + ";";
+    if (row.has_tree_stats) {
+        n = std::snprintf(buf, sizeof buf, "%.3f", row.stats.sah_cost);
+        line.append(buf, size_t(n));
+    }
+    return line + ";" + row.sah_costs;
 }
 
 // ---- kdrt-bench --accuracy ----

@@ -15,12 +15,23 @@ namespace kb {
 
 enum class RayKind { primary, diffuse, random };
 
+// The SAH builder's cost constants (kdrt_build_options.sah_*): traversal K_T, intersection K_I,
+// empty bonus EB.
+struct SahCosts {
+    float traversal = KDRT_DEFAULT_SAH_TRAVERSAL_COST;
+    float intersection = KDRT_DEFAULT_SAH_INTERSECTION_COST;
+    float empty_bonus = KDRT_DEFAULT_SAH_EMPTY_BONUS;
+};
+// "KT:KI:EB", each with %g ("15:20:0.2"): how --sah-costs reads a triple and SahCosts writes it.
+std::string sah_costs_label(const SahCosts &costs);
+
 struct Options {
     unsigned width = 800, height = 800;
     unsigned threads = 1;
     unsigned repeat = 1;
     std::vector<uint32_t> leaf_sizes;  // the original's list unless --leaf-sizes
     std::vector<std::string> builders{"median"};  // "median" and/or "sah", in the order given
+    std::vector<SahCosts> sah_costs;   // --sah-costs: a SAH variant each; empty: kdrt.h's defaults
     RayKind rays = RayKind::primary;
     std::string output;                // "" means stdout
     bool compare_embree = false;
@@ -38,6 +49,15 @@ struct Options {
 const char *intersector_name(kdrt_intersector intersector);
 // What the run traces with: opt.intersectors, or the default for its mode.
 std::vector<kdrt_intersector> intersectors_for(const Options &opt);
+
+// What a run builds, in order: each builder of opt.builders, the SAH builder once per triple of
+// opt.sah_costs (or once with the defaults).
+struct BuildVariant {
+    std::string builder;          // Builder column: median or sah
+    kdrt_build_options options;   // builder and SAH costs set; leaf size and intersector are not
+    std::string sah_costs;        // SahCosts column: sah_costs_label() for sah, empty for median
+};
+std::vector<BuildVariant> build_variants(const Options &opt);
 
 // The original benchmark's leaf sizes: 0 (no tree), 1, 2, 3, 4, 6, 8, ..., 768, 1024.
 std::vector<uint32_t> default_leaf_sizes();
@@ -88,6 +108,7 @@ struct Row {
     bool has_tree_stats = false;       // Embree rows leave the tree columns empty
     kdrt_tree_stats stats{};
     size_t mismatches = 0, reference_rays = 0;
+    std::string sah_costs;             // "KT:KI:EB" on SAH rows, empty otherwise
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

@@ -62,28 +62,13 @@ std::vector<std::string> expand_inputs(const std::vector<std::string> &args) {
     return files;
 }
 
-// Stand-ins when no mesh folder is around: a sphere and a torus of a few thousand triangles.
+// Stand-ins when no mesh folder is around: a sphere and a torus of about 9,000 triangles each.
 std::vector<Input> generated_inputs() {
-    std::vector<Input> inputs;
-    for (int shape = 0; shape < 2; ++shape) {
-        Input in;
-        in.label = shape == 0 ? "GENERATED_SPHERE" : "GENERATED_TORUS";
-        const uint32_t rings = 48, segments = 96;
-        for (uint32_t r = 0; r <= rings; ++r)
-            for (uint32_t s = 0; s <= segments; ++s) {
-                double u = 2 * M_PI * s / segments, v = (shape == 0 ? M_PI : 2 * M_PI) * r / rings;
-                double x, y, z;
-                if (shape == 0) x = std::sin(v) * std::cos(u), y = std::cos(v), z = std::sin(v) * std::sin(u);
-                else x = (1 + 0.4 * std::cos(v)) * std::cos(u), y = 0.4 * std::sin(v), z = (1 + 0.4 * std::cos(v)) * std::sin(u);
-                in.mesh.positions.insert(in.mesh.positions.end(), {float(x), float(y), float(z)});
-            }
-        for (uint32_t r = 0; r < rings; ++r)
-            for (uint32_t s = 0; s < segments; ++s) {
-                uint32_t a = r * (segments + 1) + s, b = a + 1, c = a + segments + 1, d = c + 1;
-                in.mesh.indices.insert(in.mesh.indices.end(), {a, c, d, a, d, b});
-            }
-        inputs.push_back(std::move(in));
-    }
+    std::vector<Input> inputs(2);
+    inputs[0].label = "GENERATED_SPHERE";
+    inputs[0].mesh = kt::uv_sphere(48, 96, 1.0, false);
+    inputs[1].label = "GENERATED_TORUS";
+    inputs[1].mesh = kt::torus(96, 48, 1.0, 0.4);
     return inputs;
 }
 
@@ -205,9 +190,10 @@ int main(int argc, char **argv) {
     const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
     if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, out, progress, failures);
 
+    const std::vector<kb::BuildVariant> variants = kb::build_variants(opt);
     for (const Input &in : inputs)
         progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() *
-                                            opt.builders.size() +
+                                            variants.size() +
                                         opt.compare_embree);
 
     std::fprintf(out, "%s\n", kb::csv_header().c_str());
@@ -241,12 +227,11 @@ int main(int argc, char **argv) {
         row.rays = rays.size();
         row.reference_rays = sample.size();
         std::vector<kdrt_hit> hits(rays.size());
-        for (const std::string &builder : opt.builders)
+        for (const kb::BuildVariant &variant : variants)
         for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
             for (kdrt_intersector intersector : intersectors)
                 for (unsigned rep = 0; rep < opt.repeat; ++rep) {
-                    kdrt_build_options options = kdrt_default_build_options();
-                    options.builder = builder == "sah" ? KDRT_BUILDER_SAH : KDRT_BUILDER_MEDIAN;
+                    kdrt_build_options options = variant.options;
                     options.max_leaf_size = leaf;
                     options.intersector = intersector;
                     kdrt_tree *tree = nullptr;
@@ -261,14 +246,16 @@ int main(int argc, char **argv) {
                     row.trace_ms = kb::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
                     kdrt_tree_get_stats(tree, &row.stats);
                     kdrt_tree_free(tree);
-                    row.builder = builder;
+                    row.builder = variant.builder;
+                    row.sah_costs = variant.sah_costs;
                     row.intersector = kb::intersector_name(intersector);
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
                     row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
                     std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
                     std::fflush(out);  // an interrupted run keeps every row written so far
-                    progress.step(in.label + " " + builder + " leaf " + std::to_string(leaf) + " " + row.intersector);
+                    progress.step(in.label + " " + variant.builder + (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
+                                  " leaf " + std::to_string(leaf) + " " + row.intersector);
                 }
         if (opt.compare_embree)
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
@@ -279,6 +266,7 @@ int main(int argc, char **argv) {
                     break;
                 }
                 row.builder = "embree";
+                row.sah_costs.clear();
                 row.intersector.clear();  // Embree's own test
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;

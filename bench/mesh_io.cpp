@@ -4,6 +4,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -156,6 +157,28 @@ Mesh subdivided(const Mesh &mesh, unsigned levels) {
         }
         m.indices.swap(finer);
     }
+    return m;
+}
+
+Mesh torus(uint32_t rings, uint32_t sides, double major, double minor, double tilt) {
+    const double pi = 3.14159265358979323846;
+    Mesh m;
+    m.name = "generated torus";
+    for (uint32_t i = 0; i < rings; ++i) {
+        const double a = 2 * pi * i / rings;
+        for (uint32_t j = 0; j < sides; ++j) {
+            const double b = 2 * pi * j / sides, r = major + minor * std::cos(b);
+            const double x = r * std::cos(a), y = minor * std::sin(b), z = r * std::sin(a);
+            m.positions.insert(m.positions.end(), {float(x), float(y * std::cos(tilt) - z * std::sin(tilt)),
+                                                   float(y * std::sin(tilt) + z * std::cos(tilt))});
+        }
+    }
+    for (uint32_t i = 0; i < rings; ++i)
+        for (uint32_t j = 0; j < sides; ++j) {
+            const uint32_t v00 = i * sides + j, v01 = i * sides + (j + 1) % sides;
+            const uint32_t v10 = (i + 1) % rings * sides + j, v11 = (i + 1) % rings * sides + (j + 1) % sides;
+            m.indices.insert(m.indices.end(), {v00, v10, v11, v00, v11, v01});
+        }
     return m;
 }
 

@@ -1,4 +1,5 @@
-// Meshes as plain arrays, read from files through Assimp. Shared by kdrt-bench and the tests.
+// Meshes as plain arrays, read from files through Assimp, subdivided or generated. Shared by
+// kdrt-bench, the examples and the tests.
 #pragma once
 
 #include "kdrt.h"
@@ -26,5 +27,11 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error);
 
 // `levels` rounds of 4-to-1 midpoint subdivision (shared edges share their midpoint).
 Mesh subdivided(const Mesh &mesh, unsigned levels);
+
+// A closed, indexed torus centred at the origin around the y axis: `rings` steps around the axis
+// times `sides` steps around the tube, two triangles per step, rings * sides vertices (the seams
+// share theirs); radii `major` (axis to tube centre) and `minor` (tube); then turned by `tilt`
+// radians about the x axis (positive tips the far side, -z, up). Named "generated torus".
+Mesh torus(uint32_t rings, uint32_t sides, double major, double minor, double tilt = 0);
 
 }  // namespace kt

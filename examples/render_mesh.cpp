@@ -8,7 +8,7 @@
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
-#include "mesh_io.hpp" // kt::Mesh and kt::load_mesh: Assimp, guarded against malformed files
+#include "mesh_io.hpp" // kt::Mesh, kt::load_mesh (Assimp, guarded against malformed files), kt::torus
 #include <stb_image_write.h>
 
 #include <algorithm>
@@ -74,37 +74,6 @@ double seconds_since(std::chrono::steady_clock::time_point start)
 }
 
 bool file_exists(const std::string &path) { return !path.empty() && access(path.c_str(), R_OK) == 0; }
-
-// A torus around the y axis, tilted towards the camera so its hole shows.
-Mesh make_torus()
-{
-    const int rings = 96, sides = 48;
-    const double major = 1.0, minor = 0.35, tilt = 0.6;
-    const double pi = 3.14159265358979323846;
-    Mesh m;
-    m.name = "generated torus";
-    for (int i = 0; i < rings; ++i) {
-        const double a = 2 * pi * i / rings;
-        for (int j = 0; j < sides; ++j) {
-            const double b = 2 * pi * j / sides;
-            const double r = major + minor * std::cos(b);
-            const double x = r * std::cos(a), y = minor * std::sin(b), z = r * std::sin(a);
-            m.positions.push_back(float(x));
-            m.positions.push_back(float(y * std::cos(tilt) - z * std::sin(tilt)));
-            m.positions.push_back(float(y * std::sin(tilt) + z * std::cos(tilt)));
-        }
-    }
-    for (int i = 0; i < rings; ++i) {
-        for (int j = 0; j < sides; ++j) {
-            const uint32_t v00 = uint32_t(i * sides + j), v01 = uint32_t(i * sides + (j + 1) % sides);
-            const uint32_t v10 = uint32_t((i + 1) % rings * sides + j);
-            const uint32_t v11 = uint32_t((i + 1) % rings * sides + (j + 1) % sides);
-            const uint32_t quad[6] = {v00, v10, v11, v00, v11, v01};
-            m.indices.insert(m.indices.end(), quad, quad + 6);
-        }
-    }
-    return m;
-}
 
 bool parse_uint(const char *text, unsigned long max, unsigned long &out)
 {
@@ -228,7 +197,7 @@ static int run(int argc, char **argv)
         if (file_exists(bunny)) {
             mesh_path = bunny;
         } else {
-            mesh = make_torus();
+            mesh = kt::torus(96, 48, 1.0, 0.35, 0.6);  // tilted towards the camera so its hole shows
             std::fprintf(stderr, "mesh: %s (no %s)\n", mesh.name.c_str(), bunny.c_str());
         }
     }

@@ -322,6 +322,14 @@ typedef struct kdrt_tree_stats {
     uint32_t max_depth;     /* depth of the deepest leaf; the root is depth 0 */
     uint64_t triangle_refs; /* references stored in leaves: triangles counted once per leaf */
     size_t bytes;           /* memory the tree owns */
+    /* The tree's SAH cost (Wald & Havran 2006; pbrt-v3), in the units of the sah_*_cost options
+       the build used (their defaults where 0), whatever the builder: the sum over inner nodes of
+       sah_traversal_cost * area(node) / area(root), plus the sum over leaves of
+       sah_intersection_cost * triangles(leaf) * area(leaf) / area(root), with area the surface
+       area of the node's box (the tree's bounds cut by its ancestors' splits). The expected cost
+       of a ray through the root box under the SAH's assumptions; the empty bonus is not part of
+       it. No tree (max_leaf_size 0): sah_intersection_cost * triangles. Empty tree: 0. */
+    double sah_cost;
 } kdrt_tree_stats;
 
 typedef struct kdrt_tree kdrt_tree;
@@ -1509,6 +1517,45 @@ static uint32_t kdrt__default_depth(uint32_t n)
     return depth < KDRT_MAX_DEPTH ? depth : KDRT_MAX_DEPTH;
 }
 
+static double kdrt__box_area(const float lo[3], const float hi[3])
+{
+    double dx = (double)hi[0] - lo[0], dy = (double)hi[1] - lo[1], dz = (double)hi[2] - lo[2];
+    return 2.0 * (dx * dy + dy * dz + dz * dx);
+}
+
+/* kdrt_tree_stats.sah_cost of a finished tree: a walk with an explicit stack, each node's box cut
+   from its parent's at the split. Both builders split inside the node's box: a plane beyond it
+   would leave one child as large as the node, which neither accepts. */
+static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, double intersection_cost)
+{
+    struct { uint32_t node; float lo[3], hi[3]; } stack[KDRT_MAX_DEPTH], at;
+    double root_area = kdrt__box_area(tree->bounds.min, tree->bounds.max), cost = 0.0;
+    unsigned sp = 0;
+    if (tree->stats.triangles == 0 || !(root_area > 0.0))
+        return intersection_cost * (double)tree->stats.triangle_refs; /* empty: 0 */
+    at.node = 0;
+    memcpy(at.lo, tree->bounds.min, sizeof at.lo);
+    memcpy(at.hi, tree->bounds.max, sizeof at.hi);
+    for (;;) {
+        const kdrt__node *node = &tree->nodes[at.node];
+        double share = kdrt__box_area(at.lo, at.hi) / root_area;
+        int axis = (int)(node->bits & 3u);
+        if ((node->bits & 3u) == KDRT__LEAF) {
+            cost += share * intersection_cost * (double)(node->bits >> 2);
+            if (sp == 0) return cost;
+            at = stack[--sp];
+            continue;
+        }
+        cost += share * traversal_cost;
+        KDRT_ASSERT(sp < KDRT_MAX_DEPTH && at.lo[axis] <= node->u.split && node->u.split <= at.hi[axis]);
+        stack[sp] = at; /* the above child, for later */
+        stack[sp].node = node->bits >> 2;
+        stack[sp++].lo[axis] = node->u.split;
+        at.node += 1; /* the below child follows its parent */
+        at.hi[axis] = node->u.split;
+    }
+}
+
 KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
                                      kdrt_tree **out_tree, kdrt_build_report *report)
 {
@@ -1646,6 +1693,7 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     tree->stats.triangle_refs = b.ref_count;
     tree->stats.bytes = sizeof *tree + (size_t)b.node_capacity * sizeof(kdrt__node) +
                         (size_t)b.ref_capacity * sizeof(uint32_t);
+    tree->stats.sah_cost = kdrt__sah_cost(tree, b.sah_trav, b.sah_isect);
     kdrt__free(&opt.allocator, lists);
     kdrt__free(&opt.allocator, scratch);
     *out_tree = tree;

@@ -85,6 +85,52 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
     CHECK_FALSE(parse({"--builder", "sah,"}, opt, error));
 }
 
+TEST_CASE("bench option --sah-costs: a SAH variant per triple, named in SahCosts", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    // Without it: one SAH variant with kdrt.h's defaults, the median builder unpriced.
+    REQUIRE(parse({"--builder", "median,sah"}, opt, error));
+    CHECK(opt.sah_costs.empty());
+    std::vector<kb::BuildVariant> v = kb::build_variants(opt);
+    REQUIRE(v.size() == 2);
+    CHECK(v[0].builder == "median");
+    CHECK(v[0].options.builder == KDRT_BUILDER_MEDIAN);
+    CHECK(v[0].sah_costs.empty());
+    CHECK(v[1].builder == "sah");
+    CHECK(v[1].options.builder == KDRT_BUILDER_SAH);
+    CHECK(v[1].sah_costs == "15:20:0.2");
+    CHECK(v[1].options.sah_traversal_cost == KDRT_DEFAULT_SAH_TRAVERSAL_COST);
+
+    REQUIRE(parse({"--sah-costs", "1:80:0.5,15:20:0.2,2.5:40:1e-3", "--builder", "sah,median"}, opt, error));
+    REQUIRE(opt.sah_costs.size() == 3);
+    v = kb::build_variants(opt);
+    REQUIRE(v.size() == 4);  // in the order given: three SAH variants, then the median
+    CHECK(v[0].sah_costs == "1:80:0.5");
+    CHECK(v[0].options.sah_traversal_cost == 1.0f);
+    CHECK(v[0].options.sah_intersection_cost == 80.0f);
+    CHECK(v[0].options.sah_empty_bonus == 0.5f);
+    CHECK(v[1].sah_costs == "15:20:0.2");
+    CHECK(v[2].sah_costs == "2.5:40:0.001");
+    CHECK(v[2].options.sah_empty_bonus == 0.001f);
+    CHECK(v[3].builder == "median");
+    CHECK(v[3].sah_costs.empty());
+
+    const std::vector<std::string> bad = {"15:20", "15:20:0.2:1", "15:20:0.2,", ",1:80:0.5", "a:20:0.2", "15::0.2",
+                                          "15:20:0.2x", " 15:20:0.2", "0:20:0.2", "15:0:0.2", "15:20:0", "15:20:1",
+                                          "-1:20:0.2", "15:20:-0.1", "nan:20:0.2", "inf:20:0.2", "15:2e6:0.2", ""};
+    for (const std::string &costs : bad) {
+        INFO("'" << costs << "'");
+        error.clear();
+        CHECK_FALSE(parse({"--builder", "sah", "--sah-costs", costs.c_str()}, opt, error));
+        CHECK(error.find("--sah-costs") != std::string::npos);
+    }
+    // Only the SAH builder has cost constants, and --accuracy has no builder choice.
+    CHECK_FALSE(parse({"--sah-costs", "1:80:0.5"}, opt, error));
+    CHECK(error.find("--builder sah") != std::string::npos);
+    CHECK_FALSE(parse({"--accuracy", "--builder", "sah", "--sah-costs", "1:80:0.5"}, opt, error));
+    CHECK(error.find("--sah-costs does not apply to --accuracy") != std::string::npos);
+}
+
 TEST_CASE("bench options --intersector and --accuracy parse, with their defaults", "[bench]") {
     kb::Options opt;
     std::string error;
@@ -328,7 +374,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     REQUIRE(columns == std::vector<std::string>{"Mesh", "MaxLeafSize", "ElapsedMs", "Builder", "Triangles", "BuildMs",
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
-                                                "Intersector"});
+                                                "Intersector", "SahCost", "SahCosts"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
@@ -344,6 +390,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     row.stats.max_depth = 9;
     row.stats.triangle_refs = 808;
     row.stats.bytes = 4096;
+    row.stats.sah_cost = 123.45678;
     row.mismatches = 0;
     row.reference_rays = 20000;
     const std::vector<std::string> f = split(kb::csv_row(row), ';');
@@ -363,9 +410,16 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     CHECK(f[12] == "4096");
     CHECK(f[13] == "0");
     CHECK(f[14] == "20000");
-    CHECK(f[15] == "watertight");  // the default; appended last so the columns before keep their places
+    CHECK(f[15] == "watertight");  // the default; new columns go last so the columns before keep their places
+    CHECK(f[16] == "123.457");
+    CHECK(f[17].empty());  // median: no cost constants of its own
+    row.builder = "sah";
+    row.sah_costs = "1:80:0.5";
+    CHECK(split(kb::csv_row(row), ';')[17] == "1:80:0.5");
+    row.builder = "median";
+    row.sah_costs.clear();
     row.intersector = kb::intersector_name(KDRT_INTERSECTOR_FAST);
-    CHECK(split(kb::csv_row(row), ';').back() == "fast");
+    CHECK(split(kb::csv_row(row), ';')[15] == "fast");
 
     row.builder = "embree";
     row.max_leaf_size = -1;
@@ -373,9 +427,9 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     const std::vector<std::string> e = split(kb::csv_row(row), ';');
     REQUIRE(e.size() == columns.size());
     CHECK(e[1] == "-1");
-    for (int c = 8; c <= 12; ++c) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
+    for (int c : {8, 9, 10, 11, 12, 16}) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
     row.intersector.clear();  // Embree's own triangle test
-    CHECK(split(kb::csv_row(row), ';').back().empty());
+    CHECK(split(kb::csv_row(row), ';')[15].empty());
 }
 
 TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "[bench]") {

@@ -92,6 +92,7 @@ struct Model {
     uint32_t nodes = 0, leaves = 0, depth = 0;
     uint64_t refs = 0;
     std::vector<Plane> planes;  // in build order; planes[0] is the root's
+    double sah_cost = 0;        // kdrt_tree_stats.sah_cost, from the model's own node boxes
 };
 
 uint32_t default_depth(uint32_t n) {
@@ -103,7 +104,11 @@ uint32_t default_depth(uint32_t n) {
 class MedianModel {
 public:
     // max_depth is used as given (no clamping), so the model shows how deep a tree would go.
-    MedianModel(const kt::Mesh &mesh, uint32_t leaf, uint32_t max_depth) : leaf_(leaf), max_depth_(max_depth) {
+    // The SAH cost is priced with the given costs (kdrt.h's defaults unless told).
+    MedianModel(const kt::Mesh &mesh, uint32_t leaf, uint32_t max_depth,
+                double traversal_cost = KDRT_DEFAULT_SAH_TRAVERSAL_COST,
+                double intersection_cost = KDRT_DEFAULT_SAH_INTERSECTION_COST)
+        : leaf_(leaf), max_depth_(max_depth), traversal_cost_(traversal_cost), intersection_cost_(intersection_cost) {
         uint32_t n = mesh.triangle_count();
         lo_.resize(size_t(n) * 3), hi_.resize(size_t(n) * 3), c_.resize(size_t(n) * 3);
         std::vector<uint32_t> kept;  // zero-area triangles are left out of the tree
@@ -129,8 +134,16 @@ public:
         n = model_.triangles = uint32_t(kept.size());
         if (leaf == 0 || n == 0) {
             model_.nodes = model_.leaves = 1, model_.refs = n;
+            model_.sah_cost = intersection_cost * n;  // one leaf holding everything
             return;
         }
+        // The root box: the kept triangles' boxes (what kdrt_tree_bounds() reports).
+        Box root;
+        for (int a = 0; a < 3; ++a) {
+            root.lo[a] = std::numeric_limits<float>::infinity(), root.hi[a] = -root.lo[a];
+            for (uint32_t t : kept) root.lo[a] = std::min(root.lo[a], lo_[t * 3 + a]), root.hi[a] = std::max(root.hi[a], hi_[t * 3 + a]);
+        }
+        root_area_ = root.area();
         std::vector<uint32_t> lists[3];
         for (int a = 0; a < 3; ++a) {
             lists[a] = kept;
@@ -139,15 +152,23 @@ public:
                 return kx != ky ? kx < ky : x < y;
             });
         }
-        node(lists, 0);
+        node(lists, 0, root);
     }
     const Model &result() const { return model_; }
 
 private:
-    void node(std::vector<uint32_t> (&lists)[3], uint32_t depth) {
+    struct Box {
+        float lo[3], hi[3];
+        double area() const {
+            double d[3];
+            for (int a = 0; a < 3; ++a) d[a] = double(hi[a]) - double(lo[a]);
+            return 2 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0]);
+        }
+    };
+    void node(std::vector<uint32_t> (&lists)[3], uint32_t depth, const Box &box) {
         ++model_.nodes;
         uint32_t n = uint32_t(lists[0].size());
-        if (n <= leaf_ || depth >= max_depth_) return leaf(n, depth);
+        if (n <= leaf_ || depth >= max_depth_) return leaf(n, depth, box);
         int axis = 0;
         float split = 0;
         std::vector<unsigned char> below(n), above(n);
@@ -163,8 +184,11 @@ private:
             }
             found = nb < n && na < n;
         }
-        if (!found) return leaf(n, depth);
+        if (!found) return leaf(n, depth, box);
         model_.planes.push_back({axis, split});
+        model_.sah_cost += traversal_cost_ * box.area() / root_area_;
+        Box below_box = box, above_box = box;  // the node's box cut at the split
+        below_box.hi[axis] = above_box.lo[axis] = split;
         std::vector<uint32_t> b[3], a[3];
         for (int k = 0; k < 3; ++k)
             for (uint32_t t : lists[k]) {
@@ -172,15 +196,17 @@ private:
                 if (lo < split || hi <= split) b[k].push_back(t);
                 if (hi > split) a[k].push_back(t);
             }
-        node(b, depth + 1);
-        node(a, depth + 1);
+        node(b, depth + 1, below_box);
+        node(a, depth + 1, above_box);
     }
-    void leaf(uint32_t n, uint32_t depth) {
+    void leaf(uint32_t n, uint32_t depth, const Box &box) {
         ++model_.leaves;
         model_.refs += n;
         model_.depth = std::max(model_.depth, depth);
+        model_.sah_cost += intersection_cost_ * n * box.area() / root_area_;
     }
     uint32_t leaf_, max_depth_;
+    double traversal_cost_, intersection_cost_, root_area_ = 0;
     std::vector<float> lo_, hi_, c_;
     Model model_;
 };
@@ -191,7 +217,8 @@ void check_stats(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t leaf, uin
     kdrt_tree_stats s;
     kdrt_tree_get_stats(tree, &s);
     INFO(mesh.name << " leaf size " << leaf << " max_depth " << max_depth << ": nodes " << s.nodes << " leaves "
-                   << s.leaves << " refs " << s.triangle_refs << " depth " << s.max_depth << " bytes " << s.bytes);
+                   << s.leaves << " refs " << s.triangle_refs << " depth " << s.max_depth << " bytes " << s.bytes
+                   << " SAH cost " << s.sah_cost);
     const uint32_t limit = std::min<uint32_t>(max_depth ? max_depth : default_depth(mesh.triangle_count()), KDRT_MAX_DEPTH);
     const Model m = MedianModel(mesh, leaf, limit).result();
     CHECK(s.triangles == m.triangles);
@@ -213,6 +240,7 @@ void check_stats(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t leaf, uin
     CHECK(m.leaves == s.leaves);
     CHECK(m.refs == s.triangle_refs);
     CHECK(m.depth == s.max_depth);
+    CHECK(s.sah_cost == Approx(m.sah_cost).epsilon(1e-9));
 }
 
 // Traces rays through the brute force (leaf size 0), checks it against the oracle (when given),
@@ -800,6 +828,96 @@ TEST_CASE("hard: tree statistics are consistent and follow the documented median
                     CHECK(s.nodes <= 3);  // at most one split
                 }
             }
+}
+
+namespace {
+
+kt::TreePtr build_priced(const kt::Mesh &mesh, kdrt_builder builder, uint32_t leaf, float traversal, float intersection,
+                         float empty_bonus = 0) {
+    kdrt_triangles view = mesh.view();
+    kdrt_build_options o = kdrt_default_build_options();
+    o.builder = builder;
+    o.max_leaf_size = leaf;
+    o.sah_traversal_cost = traversal;
+    o.sah_intersection_cost = intersection;
+    o.sah_empty_bonus = empty_bonus;
+    kdrt_tree *tree = nullptr;
+    REQUIRE(kdrt_tree_build(&view, &o, &tree, nullptr) == KDRT_SUCCESS);
+    return kt::TreePtr(tree);
+}
+
+kdrt_tree_stats stats_of(const kt::TreePtr &tree) {
+    kdrt_tree_stats s;
+    kdrt_tree_get_stats(tree.get(), &s);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the build's costs", "[hard]") {
+    // Three triangles: x in [0, 1] (z = 0), the plane x = 2 (y, z in [0, 1]), x in [3, 4] (z = 0).
+    // Root box [0,4]x[0,1]x[0,1], area 2 (4 + 1 + 4) = 18. The median build splits at the middle
+    // centroid, x = 2 (the planar triangle goes below), and with leaf size 2 stops there: two
+    // leaves of area 2 (2 + 1 + 2) = 10, holding 2 and 1 triangles. Cost: K_T + K_I (2 + 1) 10 / 18.
+    Soup three("three");
+    three.add(0, 0, 0, 1, 0, 0, 0, 1, 0);
+    three.add(2, 0, 0, 2, 1, 0, 2, 0, 1);
+    three.add(3, 0, 0, 4, 0, 0, 3, 1, 0);
+    {
+        kdrt_tree_stats s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 0, 0));  // 0: defaults 15, 20
+        REQUIRE(s.nodes == 3);
+        CHECK(s.sah_cost == Approx(15.0 + 20.0 * 30 / 18).epsilon(1e-12));
+        s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 1, 80));  // pbrt-v3's
+        CHECK(s.sah_cost == Approx(1.0 + 80.0 * 30 / 18).epsilon(1e-12));
+        s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 4, 1, 80));  // one leaf
+        REQUIRE(s.nodes == 1);
+        CHECK(s.sah_cost == Approx(80.0 * 3).epsilon(1e-12));
+    }
+
+    // Two triangles, x in [0, 1] and x in [9, 10], y in [0, 1], z = 0: root area 2 (10 x 1) = 20.
+    // A leaf costs 2 K_I. The SAH build with leaf size 1 splits at x = 1 or x = 9 (either leaves
+    // areas 2 and 18): K_T + K_I (2 + 18) / 20 = K_T + K_I, cheaper than the leaf for both cost sets.
+    Soup two("two");
+    two.add(0, 0, 0, 1, 0, 0, 0, 1, 0);
+    two.add(9, 0, 0, 10, 0, 0, 9, 1, 0);
+    {
+        kdrt_tree_stats s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 0, 0));
+        REQUIRE(s.nodes == 3);
+        CHECK(s.sah_cost == Approx(15.0 + 20.0).epsilon(1e-12));
+        s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 1, 80, 0.5f));
+        REQUIRE(s.nodes == 3);
+        CHECK(s.sah_cost == Approx(1.0 + 80.0).epsilon(1e-12));
+        s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 0, 1, 80));
+        CHECK(s.sah_cost == Approx(160.0).epsilon(1e-12));
+    }
+
+    // No tree (leaf size 0): K_I per triangle, whatever the builder; the empty tree costs nothing.
+    const kt::Mesh ball = kt::sphere(16, 24, 2.0);
+    for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
+        kdrt_tree_stats s = stats_of(build_priced(ball, builder, 0, 0, 0));
+        CHECK(s.sah_cost == Approx(20.0 * s.triangles).epsilon(1e-12));
+        s = stats_of(build_priced(ball, builder, 0, 3, 7));
+        CHECK(s.sah_cost == Approx(7.0 * s.triangles).epsilon(1e-12));
+        // A real tree costs less than testing everything, and more than one traversal step.
+        s = stats_of(build_priced(ball, builder, 4, 0, 0));
+        CHECK(s.sah_cost < 20.0 * s.triangles);
+        CHECK(s.sah_cost > 15.0);
+    }
+    Soup flat("one_degenerate");
+    flat.add(0, 0, 0, 1, 1, 1, 2, 2, 2);
+    CHECK(stats_of(build_priced(flat.mesh, KDRT_BUILDER_SAH, 4, 0, 0)).sah_cost == 0.0);
+
+    // Deeper median trees with other costs, against the model's own boxes (check_stats does the
+    // default costs on many more).
+    for (const kt::Mesh &mesh : {kt::random_soup(500, 5), kt::grid(12, 12, 3), ball})
+        for (uint32_t leaf : {1u, 4u, 16u}) {
+            INFO(mesh.name << " leaf size " << leaf);
+            const Model m = MedianModel(mesh, leaf, default_depth(mesh.triangle_count()), 2.5, 40).result();
+            kdrt_tree_stats s = stats_of(build_priced(mesh, KDRT_BUILDER_MEDIAN, leaf, 2.5f, 40));
+            REQUIRE(s.nodes == m.nodes);
+            CHECK(s.sah_cost == Approx(m.sah_cost).epsilon(1e-9));
+            CHECK(s.sah_cost != Approx(MedianModel(mesh, leaf, default_depth(mesh.triangle_count())).result().sah_cost));
+        }
 }
 
 namespace {

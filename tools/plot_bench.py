@@ -14,16 +14,18 @@ import sys
 from collections import defaultdict
 
 
-def read_rows(path):
+def read_rows(path, tool="plot_bench"):
+    """The rows of a kdrt-bench CSV as dicts; exits naming `tool` when it is not one."""
     with open(path, newline="") as f:
         reader = csv.DictReader(f, delimiter=";")
         missing = {"Mesh", "MaxLeafSize", "ElapsedMs"} - set(reader.fieldnames or [])
         if missing:
-            sys.exit(f"plot_bench: {path}: not a kdrt-bench CSV (no {', '.join(sorted(missing))} column)")
+            sys.exit(f"{tool}: {path}: not a kdrt-bench CSV (no {', '.join(sorted(missing))} column)")
         return list(reader)
 
 
 def median_by(rows, key, value):
+    """value(r) over the rows of each key(r), their median: how repetitions become one figure."""
     groups = defaultdict(list)
     for r in rows:
         groups[key(r)].append(value(r))
