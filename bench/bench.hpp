@@ -28,6 +28,7 @@ std::string sah_costs_label(const SahCosts &costs);
 struct Options {
     unsigned width = 800, height = 800;
     unsigned threads = 1;
+    unsigned build_threads = 1;        // --build-threads: the SAH build's threads; 0: all cores
     unsigned repeat = 1;
     std::vector<uint32_t> leaf_sizes;  // the original's list unless --leaf-sizes
     std::vector<std::string> builders{"median"};  // "median" and/or "sah", in the order given
@@ -109,6 +110,7 @@ struct Row {
     kdrt_tree_stats stats{};
     size_t mismatches = 0, reference_rays = 0;
     std::string sah_costs;             // "KT:KI:EB" on SAH rows, empty otherwise
+    unsigned build_threads = 1;        // threads the build ran on (Embree's: 1)
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

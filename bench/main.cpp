@@ -7,6 +7,7 @@
 #include "bench.hpp"
 #include "embree_peer.hpp"
 #include "reference.hpp"
+#include "thread_scheduler.hpp"
 #include "timing.hpp"
 
 #include <algorithm>
@@ -198,6 +199,7 @@ int main(int argc, char **argv) {
 
     std::fprintf(out, "%s\n", kb::csv_header().c_str());
     std::fflush(out);
+    kb::ThreadScheduler build_pool(opt.build_threads);
     const uint32_t seed = 1;
     for (const Input &in : inputs) {
         const kb::Scene scene = kb::make_scene(in.mesh, in.label);
@@ -234,6 +236,7 @@ int main(int argc, char **argv) {
                     kdrt_build_options options = variant.options;
                     options.max_leaf_size = leaf;
                     options.intersector = intersector;
+                    if (build_pool.threads() > 1) options.scheduler = build_pool.hooks();
                     kdrt_tree *tree = nullptr;
                     kb::Stopwatch build_clock;
                     r = kdrt_tree_build(&view, &options, &tree, nullptr);
@@ -249,6 +252,7 @@ int main(int argc, char **argv) {
                     row.builder = variant.builder;
                     row.sah_costs = variant.sah_costs;
                     row.intersector = kb::intersector_name(intersector);
+                    row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
                     row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
@@ -267,6 +271,7 @@ int main(int argc, char **argv) {
                 }
                 row.builder = "embree";
                 row.sah_costs.clear();
+                row.build_threads = 1;    // rtcNewDevice("threads=1")
                 row.intersector.clear();  // Embree's own test
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;

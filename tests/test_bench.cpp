@@ -374,7 +374,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     REQUIRE(columns == std::vector<std::string>{"Mesh", "MaxLeafSize", "ElapsedMs", "Builder", "Triangles", "BuildMs",
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
-                                                "Intersector", "SahCost", "SahCosts"});
+                                                "Intersector", "SahCost", "SahCosts", "BuildThreads"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
