@@ -1376,11 +1376,13 @@ typedef struct kdrt__top {
     uint32_t node_count;
     kdrt__task tasks[1u << KDRT__TASK_DEPTH];
     uint32_t task_count;
+    uint32_t largest_first[1u << KDRT__TASK_DEPTH]; /* the order tasks are handed out in */
 } kdrt__top;
 
 static void kdrt__run_task(void *data, uint32_t index)
 {
-    kdrt__task *t = (kdrt__task *)data + index;
+    kdrt__top *top = (kdrt__top *)data;
+    kdrt__task *t = &top->tasks[top->largest_first[index]];
     kdrt__arena arena;
     memset(&arena, 0, sizeof arena);
     arena.allocator = t->out.allocator;
@@ -1476,8 +1478,16 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
     top->node_count = top->task_count = 0;
     r = kdrt__sah_top(b, top, refs, n, lo, hi, 0);
     if (r == KDRT_SUCCESS) {
-        if (scheduler && scheduler->run) scheduler->run(scheduler->user, kdrt__run_task, top->tasks, top->task_count);
-        else for (i = 0; i < top->task_count; ++i) kdrt__run_task(top->tasks, i);
+        /* Largest first, so that no thread is left with a big task at the end (the order
+           changes only the timing: each task's subtree goes where its index says). */
+        for (i = 0; i < top->task_count; ++i) {
+            uint32_t j = i;
+            for (; j > 0 && top->tasks[top->largest_first[j - 1]].n < top->tasks[i].n; --j)
+                top->largest_first[j] = top->largest_first[j - 1];
+            top->largest_first[j] = i;
+        }
+        if (scheduler && scheduler->run) scheduler->run(scheduler->user, kdrt__run_task, top, top->task_count);
+        else for (i = 0; i < top->task_count; ++i) kdrt__run_task(top, i);
         for (i = 0; i < top->task_count && r == KDRT_SUCCESS; ++i) r = top->tasks[i].result;
     }
     if (r == KDRT_SUCCESS) {
