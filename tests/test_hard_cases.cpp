@@ -1,9 +1,9 @@
 // Hard placements: axis-parallel rays, rays in split planes, rays starting on triangles,
-// triangles in split planes, identical and degenerate triangles, strided and unaligned vertex
-// buffers, the tree's statistics, the deepest tree, the original's early-exit bug and scenes far
-// from the origin. Every tree (leaf sizes 1..64) must answer bit for bit as max_leaf_size = 0 (test
-// every triangle) does, which the header guarantees; that answer is checked against the
-// double-precision oracle or against hand-computed hits.
+// triangles in split planes, identical, coplanar and degenerate triangles, strided and unaligned
+// vertex buffers, the tree's statistics and bytes, the deepest tree, the original's early-exit bug
+// and scenes far from the origin. Every tree (leaf sizes 1..64) must answer bit for bit as
+// max_leaf_size = 0 (test every triangle) does, which the header guarantees; that answer is
+// checked against the double-precision oracle or against hand-computed hits.
 //
 // Real split planes come from a model of the median build described in kdrt.h (THE TREE); the
 // model's node, leaf, reference and depth counts are required to equal the library's, so the
@@ -619,6 +619,83 @@ TEST_CASE("hard: many identical triangles: the build terminates, the lowest inde
             CHECK(not_first == 0);
         }
     }
+}
+
+TEST_CASE("hard: coplanar overlapping triangles: the lower caller index wins, whatever order the tree stores them in", "[hard]") {
+    // The tree keeps its triangles in the order its leaves first refer to them (depth first,
+    // below child first), not the caller's: here the big triangle (index 1) reaches far lower x
+    // and y than the small one (index 0), so the leaves on the low side meet it first. Where they
+    // overlap, in the plane z = 0, both are hit at the same t, and the answer must be index 0.
+    Soup s("coplanar_reordered");
+    const uint32_t small = s.add(8, 8, 0, 9, 8, 0, 8, 9, 0);
+    const uint32_t big = s.add(-10, -10, 0, 20, -10, 0, -10, 20, 0);
+    REQUIRE(small == 0);
+    REQUIRE(big == 1);
+    kt::Mesh fillers = kt::random_soup(300, 77);  // in [0, 10]^3; moved to y in [30, 40]
+    for (size_t i = 1; i < fillers.positions.size(); i += 3) fillers.positions[i] += 30;
+    s.mesh.positions.insert(s.mesh.positions.end(), fillers.positions.begin(), fillers.positions.end());
+    kdrt_triangles view = s.mesh.view();
+    for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+        for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
+            for (uint32_t leaf : kLeafSizes) {
+                INFO("builder " << builder << " intersector " << intersector << " leaf size " << leaf);
+                kdrt_build_options o = kdrt_default_build_options();
+                o.builder = builder, o.intersector = intersector, o.max_leaf_size = leaf;
+                kdrt_tree *raw = nullptr;
+                REQUIRE(kdrt_tree_build(&view, &o, &raw, nullptr) == KDRT_SUCCESS);
+                kt::TreePtr tree(raw);
+                // (8.25, 8.5) = small's p0 + u (1, 0, 0) + v (0, 1, 0): u = 0.25, v = 0.5.
+                require_hit(trace(tree.get(), ray_of(8.25f, 8.5f, 5, 0, 0, -1)), small, 5, 0.25f, 0.5f);
+                require_hit(trace(tree.get(), ray_of(8.25f, 8.5f, -4, 0, 0, 2)), small, 2, 0.25f, 0.5f);
+                // Beside the small one only the big one is there: (0, 0) = p0 + u (30, 0, 0) + v (0, 30, 0).
+                require_hit(trace(tree.get(), ray_of(0, 0, 5, 0, 0, -1)), big, 5, 1.0f / 3, 1.0f / 3);
+            }
+}
+
+TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed mesh does, left-out triangles nothing", "[hard]") {
+    // THE TREE: nodes, references, a 16-byte record per triangle and each distinct corner
+    // position once, 12 bytes; kdrt_tree_stats.bytes counts them and the tree struct itself.
+    kt::Mesh mesh = kt::sphere(16, 24, 2.0);
+    kt::Mesh soup = kt::as_soup(mesh);
+    std::set<std::array<uint32_t, 3>> distinct;
+    for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
+        std::array<uint32_t, 3> bits;
+        std::memcpy(bits.data(), &mesh.positions[3 * v], 12);
+        distinct.insert(bits);
+    }
+    // The same mesh with zero-area triangles and (skipped) ones indexing past the vertices.
+    kt::Mesh extra = mesh;
+    extra.name = "sphere_with_left_out_triangles";
+    for (uint32_t i = 0; i < 40; ++i) extra.indices.insert(extra.indices.end(), {i, i, i + 1});
+    for (uint32_t i = 0; i < 10; ++i) extra.indices.insert(extra.indices.end(), {i, i + 1, mesh.vertex_count() + i});
+
+    for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+        for (uint32_t leaf : kLeafSizes) {
+            INFO("builder " << builder << " leaf size " << leaf);
+            kdrt_build_options o = kdrt_default_build_options();
+            o.builder = builder, o.max_leaf_size = leaf, o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+            kdrt_tree_stats st[3];
+            const kt::Mesh *meshes[3] = {&mesh, &soup, &extra};
+            for (int k = 0; k < 3; ++k) {
+                kdrt_triangles view = meshes[k]->view();
+                kdrt_tree *raw = nullptr;
+                REQUIRE(kdrt_tree_build(&view, &o, &raw, nullptr) == KDRT_SUCCESS);
+                kdrt_tree_get_stats(raw, &st[k]);
+                kdrt_tree_free(raw);
+            }
+            const size_t copy = size_t(st[0].triangles) * 16 + distinct.size() * 12;
+            const size_t counted = size_t(st[0].nodes) * 8 + size_t(st[0].triangle_refs) * 4 + copy;
+            CHECK(st[0].triangles == mesh.triangle_count());
+            CHECK(st[0].bytes >= counted);
+            CHECK(st[0].bytes <= counted + 1024);  // the tree struct
+            for (int k = 1; k < 3; ++k) {
+                INFO(meshes[k]->name);
+                CHECK(st[k].triangles == st[0].triangles);
+                CHECK(st[k].nodes == st[0].nodes);
+                CHECK(st[k].triangle_refs == st[0].triangle_refs);
+                CHECK(st[k].bytes == st[0].bytes);
+            }
+        }
 }
 
 TEST_CASE("hard: degenerate triangles are never hit", "[hard]") {
