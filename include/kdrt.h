@@ -2049,7 +2049,8 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
        index, and the tree's copy is in leaf order, so finding a triangle there would take an
        inverse map (4 more bytes a triangle) for a query made once per hit, not once per test. */
     if (!tree || !hit || hit->triangle >= tree->mesh.triangle_count) return 0;
-    kdrt__load_triangle(&tree->mesh, hit->triangle, p);
+    /* A hand-made hit may name a triangle the build skipped: check it as the build did. */
+    if (kdrt__check_triangle(&tree->mesh, hit->triangle, p) != KDRT_SUCCESS) return 0;
     for (a = 0; a < 3; ++a) {
         e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
         /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp */

@@ -829,3 +829,28 @@ TEST_CASE("alloc: a build failing on a bad triangle frees everything", "[errors]
     view.vertex_count -= 1;
     fail_each_allocation(view, options_with_leaf(2), KDRT_ERROR_INDEX_OUT_OF_RANGE, KDRT_ERROR_INDEX_OUT_OF_RANGE, rays);
 }
+
+TEST_CASE("errors: kdrt_hit_surface and kdrt_spawn_ray refuse a made-up hit on a skipped triangle", "[errors]") {
+    kt::Mesh grid = kt::grid(4, 4, 3);
+    grid.indices[3 * 5 + 1] = 1000000;  // triangle 5: an index far out of range, skipped
+    grid.positions[3 * grid.indices[3 * 7]] = kNaN;  // triangle 7 (and its neighbours): NaN, skipped
+    kdrt_triangles view = grid.view();
+    kdrt_build_options o = kdrt_default_build_options();
+    o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+    kdrt_tree *raw = nullptr;
+    REQUIRE(try_build(view, o, &raw) == KDRT_SUCCESS);
+    kt::TreePtr tree(raw);
+    const float dir[3] = {0, 0, 1};
+    for (uint32_t skipped : {5u, 7u}) {
+        INFO("triangle " << skipped);
+        kdrt_hit hit{1.0f, 0.25f, 0.25f, skipped};
+        float point[3] = {-1, -1, -1}, normal[3] = {-1, -1, -1};
+        CHECK(kdrt_hit_surface(tree.get(), &hit, point, normal) == 0);
+        CHECK(point[0] == -1.0f);  // nothing written
+        kdrt_ray ray;
+        CHECK(kdrt_spawn_ray(tree.get(), &hit, dir, &ray) == 0);
+    }
+    kdrt_hit good{1.0f, 0.25f, 0.25f, 0};
+    float point[3];
+    CHECK(kdrt_hit_surface(tree.get(), &good, point, nullptr) == 1);
+}
