@@ -159,7 +159,7 @@ std::string usage() {
            "  --sah-costs LIST    SAH cost constants KT:KI:EB (traversal cost, intersection cost,\n"
            "                      empty bonus; KT, KI > 0, 0 < EB < 1), comma-separated: the SAH\n"
            "                      builder runs once per triple, named in the SahCosts column\n"
-           "                      (default: kdrt.h's, 15:20:0.2; pbrt-v3's are 1:80:0.5)\n"
+           "                      (default: kdrt.h's, 30:20:0.1; pbrt-v3's are 1:80:0.5)\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"

@@ -22,7 +22,7 @@ struct SahCosts {
     float intersection = KDRT_DEFAULT_SAH_INTERSECTION_COST;
     float empty_bonus = KDRT_DEFAULT_SAH_EMPTY_BONUS;
 };
-// "KT:KI:EB", each with %g ("15:20:0.2"): how --sah-costs reads a triple and SahCosts writes it.
+// "KT:KI:EB", each with %g ("30:20:0.1"): how --sah-costs reads a triple and SahCosts writes it.
 std::string sah_costs_label(const SahCosts &costs);
 
 struct Options {

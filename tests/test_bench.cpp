@@ -98,7 +98,7 @@ TEST_CASE("bench option --sah-costs: a SAH variant per triple, named in SahCosts
     CHECK(v[0].sah_costs.empty());
     CHECK(v[1].builder == "sah");
     CHECK(v[1].options.builder == KDRT_BUILDER_SAH);
-    CHECK(v[1].sah_costs == "15:20:0.2");
+    CHECK(v[1].sah_costs == "30:20:0.1");
     CHECK(v[1].options.sah_traversal_cost == KDRT_DEFAULT_SAH_TRAVERSAL_COST);
 
     REQUIRE(parse({"--sah-costs", "1:80:0.5,15:20:0.2,2.5:40:1e-3", "--builder", "sah,median"}, opt, error));

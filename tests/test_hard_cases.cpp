@@ -941,8 +941,10 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
     three.add(2, 0, 0, 2, 1, 0, 2, 0, 1);
     three.add(3, 0, 0, 4, 0, 0, 3, 1, 0);
     {
-        kdrt_tree_stats s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 0, 0));  // 0: defaults 15, 20
+        kdrt_tree_stats s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 0, 0));  // 0: defaults
         REQUIRE(s.nodes == 3);
+        CHECK(s.sah_cost == Approx(double(KDRT_DEFAULT_SAH_TRAVERSAL_COST) + double(KDRT_DEFAULT_SAH_INTERSECTION_COST) * 30 / 18).epsilon(1e-12));
+        s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 15, 20));  // Wald & Havran's
         CHECK(s.sah_cost == Approx(15.0 + 20.0 * 30 / 18).epsilon(1e-12));
         s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 1, 80));  // pbrt-v3's
         CHECK(s.sah_cost == Approx(1.0 + 80.0 * 30 / 18).epsilon(1e-12));
@@ -953,14 +955,18 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
 
     // Two triangles, x in [0, 1] and x in [9, 10], y in [0, 1], z = 0: root area 2 (10 x 1) = 20.
     // A leaf costs 2 K_I. The SAH build with leaf size 1 splits at x = 1 or x = 9 (either leaves
-    // areas 2 and 18): K_T + K_I (2 + 18) / 20 = K_T + K_I, cheaper than the leaf for both cost sets.
+    // areas 2 and 18) when K_T + K_I (2 + 18) / 20 = K_T + K_I is cheaper than the leaf: with
+    // Wald & Havran's and pbrt-v3's costs, not with kdrt's defaults (K_T = 1.5 K_I).
     Soup two("two");
     two.add(0, 0, 0, 1, 0, 0, 0, 1, 0);
     two.add(9, 0, 0, 10, 0, 0, 9, 1, 0);
     {
-        kdrt_tree_stats s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 0, 0));
+        kdrt_tree_stats s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 15, 20, 0.2f));
         REQUIRE(s.nodes == 3);
         CHECK(s.sah_cost == Approx(15.0 + 20.0).epsilon(1e-12));
+        s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 0, 0));  // defaults: the leaf is cheaper
+        REQUIRE(s.nodes == 1);
+        CHECK(s.sah_cost == Approx(2.0 * KDRT_DEFAULT_SAH_INTERSECTION_COST).epsilon(1e-12));
         s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 1, 80, 0.5f));
         REQUIRE(s.nodes == 3);
         CHECK(s.sah_cost == Approx(1.0 + 80.0).epsilon(1e-12));
@@ -978,7 +984,7 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
         // A real tree costs less than testing everything, and more than one traversal step.
         s = stats_of(build_priced(ball, builder, 4, 0, 0));
         CHECK(s.sah_cost < 20.0 * s.triangles);
-        CHECK(s.sah_cost > 15.0);
+        CHECK(s.sah_cost > KDRT_DEFAULT_SAH_TRAVERSAL_COST);
     }
     Soup flat("one_degenerate");
     flat.add(0, 0, 0, 1, 1, 1, 2, 2, 2);

@@ -13,10 +13,10 @@ per setting (--builder sah --sah-costs GRID --leaf-sizes 4), tracing on one thre
 tools/plot_bench.py takes it. Build ms is the median over the rows of both runs. Mismatches
 (summed over both runs) must be 0 everywhere; a setting with any is marked.
 
-The default grid holds pbrt-v3's constants (1:80:0.5) and Wald & Havran's (15:20:0.2, kdrt.h's
-defaults), and the K_T/K_I ratios 1/80, 1/40, 1/20, 1/10, 1/4, 1/2, 3/4, 1 and 3/2 (K_I = 20 but
-for 1/80, written 1:80 as pbrt has it; only the ratio shapes the tree), each with the empty
-bonuses 0.2, 0.5 and 0.8: 27 settings. The table is sorted by the geometric mean of the primary
+The default grid holds pbrt-v3's constants (1:80:0.5), Wald & Havran's (15:20:0.2) and kdrt.h's
+defaults (30:20:0.1, chosen with this tool), and the K_T/K_I ratios 1/80, 1/40, 1/20, 1/10, 1/4,
+1/2, 3/4, 1, 3/2, 9/4 and 3 (K_I = 20 but for 1/80, written 1:80 as pbrt has it; only the ratio
+shapes the tree), each with the empty bonuses 0.05, 0.1, 0.2, 0.5 and 0.8: 55 settings. The table is sorted by the geometric mean of the primary
 and diffuse speeds, best first. The SAH cost is not compared: each setting prices its tree in
 its own units.
 """
@@ -32,10 +32,11 @@ from plot_bench import median_by, read_rows  # noqa: E402  (the same reading and
 
 TOOL = "tune_sah"
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PBRT, WALD_HAVRAN = "1:80:0.5", "15:20:0.2"
-RATIOS = [(1, 80), (0.5, 20), (1, 20), (2, 20), (5, 20), (10, 20), (15, 20), (20, 20), (30, 20)]
-BONUSES = [0.2, 0.5, 0.8]
-NOTES = {PBRT: "pbrt-v3", WALD_HAVRAN: "Wald & Havran; kdrt.h's default"}
+PBRT, WALD_HAVRAN, KDRT = "1:80:0.5", "15:20:0.2", "30:20:0.1"
+RATIOS = [(1, 80), (0.5, 20), (1, 20), (2, 20), (5, 20), (10, 20), (15, 20), (20, 20), (30, 20), (45, 20),
+          (60, 20)]
+BONUSES = [0.05, 0.1, 0.2, 0.5, 0.8]
+NOTES = {PBRT: "pbrt-v3", WALD_HAVRAN: "Wald & Havran", KDRT: "kdrt.h's default"}
 
 
 def default_grid():
@@ -168,7 +169,7 @@ def main():
         if not os.access(args.bench, os.X_OK):
             sys.exit(f"{TOOL}: no kdrt-bench at {args.bench}: build it (see README) or give --bench PATH")
         grid = args.grid.split(",") if args.grid else default_grid()
-        for named in (PBRT, WALD_HAVRAN):
+        for named in (PBRT, WALD_HAVRAN, KDRT):
             if named not in grid:
                 grid.insert(0, named)
         tmp = None if args.csv else tempfile.TemporaryDirectory(prefix="tune_sah-")
