@@ -321,8 +321,8 @@ typedef struct kdrt_build_options {
 /* Picked by measurement (README, "Choosing the SAH costs": tools/tune_sah.py over 55 settings,
    four meshes, primary and diffuse rays): K_T / K_I = 1.5 with empty bonus 0.1 traces within 2%
    of the fastest setting, builds 16% faster and takes 20% less memory than Wald & Havran 2006's
-   15, 20 and 0.2 (Mitsuba alike). pbrt-v3's 1, 80 and 0.5 traces 18-28% slower here: with
-   max_leaf_size 4 the trees reach max_depth, and a larger bonus spends depth on empty space. */
+   15, 20 and 0.2 (Mitsuba alike). pbrt-v3's 1, 80 and 0.5 traces 18-28% slower here, for its
+   larger empty bonus: every bonus from 0.5 up does. */
 #define KDRT_DEFAULT_SAH_TRAVERSAL_COST 30.0f
 #define KDRT_DEFAULT_SAH_INTERSECTION_COST 20.0f
 #define KDRT_DEFAULT_SAH_EMPTY_BONUS 0.1f
