@@ -1956,6 +1956,10 @@ static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri
     return kdrt__accept(best, tri->id, t, u, v, s);
 }
 
+#ifndef KDRT__MAILBOX
+#define KDRT__MAILBOX 32u /* a power of two */
+#endif
+
 typedef struct kdrt__todo {
     uint32_t node;
     float t0, t1;
@@ -1966,10 +1970,14 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node = 0;
+    /* Mailbox: the records tested last, by their low bits. A triangle split across leaves is
+       tested once per ray: a second test could only repeat the first one's answer. */
+    uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
     float t0, t1;
 
     best->t = 0.0f, best->u = best->v = 0.0f, best->triangle = KDRT_INVALID_ID;
+    memset(tested, 0xFF, sizeof tested);
     if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
     best->t = s.tmax;
 
@@ -2012,6 +2020,8 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
             uint32_t i, count = n->bits >> 2;
             for (i = 0; i < count; ++i) {
                 const kdrt__triangle *tri = tree->triangles + refs[i];
+                if (tested[refs[i] & (KDRT__MAILBOX - 1u)] == refs[i]) continue;
+                tested[refs[i] & (KDRT__MAILBOX - 1u)] = refs[i];
                 int found = tree->watertight ? kdrt__intersect_watertight(tree->vertices, tri, &s, best)
                                              : kdrt__intersect_fast(tree->vertices, tri, &s, best);
                 if (found && any_hit) return 1;
