@@ -1070,6 +1070,12 @@ static void *kdrt__arena_alloc(kdrt__arena *arena, size_t size)
     return (char *)c + KDRT__CHUNK_HEADER + (c->used - size);
 }
 
+static void kdrt__arena_init(kdrt__arena *arena, const kdrt_allocator *allocator)
+{
+    arena->allocator = allocator;
+    arena->first = arena->current = NULL;
+}
+
 static kdrt__mark kdrt__arena_mark(const kdrt__arena *arena)
 {
     kdrt__mark m;
@@ -1284,8 +1290,8 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
            the bins found nothing worth it. */
         kdrt__mark mark = kdrt__arena_mark(arena);
         uint64_t *keys = (uint64_t *)kdrt__arena_alloc(arena, 2 * (size_t)n * sizeof(uint64_t));
-        int k_first = best->axis < 0 || !(best->cost < leaf_cost) ? 0 : best->axis;
-        int k_last = best->axis < 0 || !(best->cost < leaf_cost) ? 2 : best->axis;
+        int all_axes = best->axis < 0 || !(best->cost < leaf_cost);
+        int k_first = all_axes ? 0 : best->axis, k_last = all_axes ? 2 : best->axis;
         if (!keys) return KDRT_ERROR_OUT_OF_MEMORY;
         best->axis = -1, best->cost = INFINITY;
         kdrt__exact_plane(b, refs, n, lo, hi, 1.0f / area, k_first, k_last, keys, best);
@@ -1414,8 +1420,7 @@ static void kdrt__run_task(void *data, uint32_t index)
     kdrt__top *top = (kdrt__top *)data;
     kdrt__task *t = &top->tasks[top->largest_first[index]];
     kdrt__arena arena;
-    memset(&arena, 0, sizeof arena);
-    arena.allocator = t->out.allocator;
+    kdrt__arena_init(&arena, t->out.allocator);
     t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, t->lo, t->hi, t->depth);
     kdrt__arena_free(&arena);
     kdrt__free(t->out.allocator, t->refs);
@@ -1435,8 +1440,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
 
     plane.axis = -1;
     if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH) {
-        memset(&arena, 0, sizeof arena);
-        arena.allocator = b->allocator;
+        kdrt__arena_init(&arena, b->allocator);
         r = kdrt__choose_plane(b, &arena, refs, n, lo, hi, depth, &plane);
         kdrt__arena_free(&arena);
         if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
@@ -1684,7 +1688,7 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
         const kdrt__node *node = &tree->nodes[at.node];
         double share = kdrt__box_area(at.lo, at.hi) / root_area;
         int axis = (int)(node->bits & 3u);
-        if ((node->bits & 3u) == KDRT__LEAF) {
+        if (axis == (int)KDRT__LEAF) {
             cost += share * intersection_cost * (double)(node->bits >> 2);
             if (sp == 0) return cost;
             at = stack[--sp];
@@ -2020,10 +2024,12 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
             uint32_t i, count = n->bits >> 2;
             for (i = 0; i < count; ++i) {
                 const kdrt__triangle *tri = tree->triangles + refs[i];
-                if (tested[refs[i] & (KDRT__MAILBOX - 1u)] == refs[i]) continue;
-                tested[refs[i] & (KDRT__MAILBOX - 1u)] = refs[i];
-                int found = tree->watertight ? kdrt__intersect_watertight(tree->vertices, tri, &s, best)
-                                             : kdrt__intersect_fast(tree->vertices, tri, &s, best);
+                uint32_t *box = &tested[refs[i] & (KDRT__MAILBOX - 1u)];
+                int found;
+                if (*box == refs[i]) continue;
+                *box = refs[i];
+                found = tree->watertight ? kdrt__intersect_watertight(tree->vertices, tri, &s, best)
+                                         : kdrt__intersect_fast(tree->vertices, tri, &s, best);
                 if (found && any_hit) return 1;
             }
         }
