@@ -72,8 +72,9 @@
        KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
          surface made of triangles sharing edges and vertices (by index or by equal coordinates)
          hits at least one of them, even exactly through an edge or a vertex: no ray slips
-         through a closed mesh. Requires the compiler not to fuse a*b - c*d into FMAs (GCC and
-         Clang on x86-64 do not by default; elsewhere build with -ffp-contract=off).
+         through a closed mesh. This holds whatever the compiler fuses into FMAs (-march=native,
+         -ffp-contract=fast, Clang on ARM): the edge functions are formed in double, where the
+         products of floats are exact (the tests build a copy with -mfma -ffp-contract=fast).
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it.
      A ray lying exactly in a triangle's plane and meeting it may hit it or miss it: the
@@ -1917,14 +1918,12 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
         y[k] = dy - s->shear_y * dz;
         z[k] = s->shear_z * dz;
     }
-    e0 = x[2] * y[1] - y[2] * x[1]; /* edge 1-2: weight of corner 0 */
-    e1 = x[0] * y[2] - y[0] * x[2]; /* edge 2-0: weight of corner 1 */
-    e2 = x[1] * y[0] - y[1] * x[0]; /* edge 0-1: weight of corner 2 */
-    if (e0 == 0.0f || e1 == 0.0f || e2 == 0.0f) {
-        e0 = (float)((double)x[2] * y[1] - (double)y[2] * x[1]);
-        e1 = (float)((double)x[0] * y[2] - (double)y[0] * x[2]);
-        e2 = (float)((double)x[1] * y[0] - (double)y[1] * x[0]);
-    }
+    /* In double the products of floats are exact, so each edge function is rounded once, and
+       its sign is right: the two triangles of an edge get exactly opposite values, even where
+       the compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM). */
+    e0 = (float)((double)x[2] * y[1] - (double)y[2] * x[1]); /* edge 1-2: weight of corner 0 */
+    e1 = (float)((double)x[0] * y[2] - (double)y[0] * x[2]); /* edge 2-0: weight of corner 1 */
+    e2 = (float)((double)x[1] * y[0] - (double)y[1] * x[0]); /* edge 0-1: weight of corner 2 */
     if ((e0 < 0.0f || e1 < 0.0f || e2 < 0.0f) && (e0 > 0.0f || e1 > 0.0f || e2 > 0.0f)) return 0;
     det = e0 + e1 + e2;
     if (det == 0.0f) return 0; /* the ray lies in the triangle's plane, sheared exactly */
