@@ -293,7 +293,13 @@ bool Reader::read_settings(const Fields &top, Scene &scene)
         if (!s.value.IsScalar())
             return fail(s.value, "setting " + s.key + " must be a single value, got " + describe(s.value));
         std::string message;
-        if (!apply_setting(scene, s.key, s.value.Scalar(), message)) return fail(s.value, message);
+        if (!apply_setting(scene, s.key, s.value.Scalar(), message)) {
+            if (message.rfind("unknown setting", 0) == 0) {  // a typo: say what is there
+                std::vector<std::string> names = setting_names();
+                message += " (known: " + quoted_list(names) + ")";
+            }
+            return fail(s.value, message);
+        }
     }
     return true;
 }
@@ -519,7 +525,7 @@ bool load_scene_file(const std::string &path, Scene &scene, std::string &error)
     std::error_code ec;
     const fs::file_status status = fs::status(path, ec);
     if (ec || !fs::exists(status)) {
-        error = path + ": cannot read the scene file: " + (ec ? ec.message() : std::string("no such file"));
+        error = path + ": cannot read the scene file: " + (ec ? ec.message() : std::string("No such file or directory"));
         return false;
     }
     if (fs::is_directory(status)) {
