@@ -437,6 +437,9 @@ TEST_CASE("scene files that are missing, folders, empty, cut short or not text a
 
     check_error(minimal + "---\n" + minimal, 7, "a second YAML document");  // where it starts
     check_error(minimal + std::string("\0\1\2", 3), 6, "a NUL byte");
+    // yaml-cpp's parser recurses; its depth guard turns a deep nest into an error, not a crash.
+    check_error(minimal + "background: " + std::string(100000, '[') + std::string(100000, ']') + "\n", 6,
+                "YAML nested more than");
 }
 
 TEST_CASE("files above 64 MB are refused before they are parsed", "[scene_file]")

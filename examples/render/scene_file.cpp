@@ -2,6 +2,7 @@
 // it against the Scene model, naming the line of every mistake through the nodes' marks.
 #include "scene_file.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -511,6 +512,9 @@ bool parse_scene_text(const std::string &text, const std::string &name_for_error
             scene = std::move(local);
             return true;
         }
+    } catch (const YAML::DeepRecursion &e) {  // its own message is a bare "bad file"
+        reader.fail_at(e.mark.line, "YAML nested more than " + std::to_string(e.depth() - 1) +
+                                        " levels deep: not a scene");
     } catch (const YAML::Exception &e) {
         reader.fail_at(e.mark.line, "YAML syntax error: " + e.msg);
     } catch (const std::exception &e) {  // bad_alloc and the like: still a clean refusal
