@@ -303,10 +303,11 @@ TEST_CASE("values of the wrong type are errors that show what was given", "[scen
                 4, "sphere 'radius' must be a number > 0, got \"1\"");
     check_error(camera_line + "materials: [{name: white}]\nspheres:\n  - {center: [0, 0], radius: 1, material: white}\n",
                 4, "sphere 'center' must be [x, y, z] of finite numbers, got [0, 0]");
-    check_error(camera_line + "materials: {name: white}\n", 2, "'materials' must be a list of materials, got a map");
+    check_error(camera_line + "materials: {name: white}\n", 2, "'materials' must be a list of material maps, got a map");
     check_error(camera_line + "materials: [white]\n", 2, "material must be a map of keys, got \"white\"");
     check_error("camera: [0, 0, 5]\n", 1, "camera must be a map of keys, got [0, 0, 5]");
-    check_error("just some words\n", 1, "scene must be a map of keys");
+    check_error("just some words\n", 1, "a scene must be a map of sections (camera, materials, spheres, ...), got \"just some words\"");
+    check_error("- camera\n- spheres\n", 1, "a scene must be a map of sections");
     check_error(minimal + "settings: {NSAMPLES: [1, 2]}\n", 6, "setting NSAMPLES must be a single value");
 }
 

@@ -166,7 +166,7 @@ bool Reader::read_list(const Fields &parent, const char *key, const std::string 
     const YAML::Node *list = parent.find(key);
     if (!list || list->IsNull()) return true;
     if (!list->IsSequence())
-        return fail(*list, std::string("'") + key + "' must be a list of " + item + "s, got " + describe(*list));
+        return fail(*list, std::string("'") + key + "' must be a list of " + item + " maps, got " + describe(*list));
     if (list->size() > kMaxListLength)
         return fail(*list, std::string("'") + key + "' has " + std::to_string(list->size()) + " entries, at most " +
                                std::to_string(kMaxListLength) + " are read");
@@ -472,6 +472,8 @@ bool Reader::read_scene(const YAML::Node &root, Scene &scene)
     if (!root.IsDefined() || root.IsNull())
         return fail_at(root.IsDefined() ? root.Mark().line : 0,
                        "the scene is empty: expected a map of sections (camera, materials, spheres, ...)");
+    if (!root.IsMap())
+        return fail(root, "a scene must be a map of sections (camera, materials, spheres, ...), got " + describe(root));
     Fields top;
     if (!read_map(root, "scene",
                   {"settings", "camera", "background", "textures", "materials", "spheres", "quads", "meshes", "lights"},
