@@ -11,6 +11,7 @@ PACKAGES=(
   catch2          # the test framework (Catch2 v2)
   libassimp-dev   # mesh loading in the tests and examples
   libstb-dev      # stb_image_write for the example's PNG output
+  libyaml-cpp-dev # kdrt-render's scene files (YAML, with line numbers for errors)
   libembree-dev   # Embree 3: only kdrt-bench's --compare embree, the peer speed is stated against
   python3-matplotlib  # tools/plot_bench.py
 )
