@@ -159,7 +159,7 @@ std::string report_text(const TreeReport &r)
     std::string t;
     t += "mesh: " + r.mesh + " (" + r.source + ")\n";
     t += "builder: " + r.builder + ", leaf size " + std::to_string(r.leaf_size) + ", built in " +
-         format("%.1f", r.build_ms) + " ms on 1 thread\n";
+         format("%.2f", r.build_ms) + " ms on 1 thread\n";
     t += "triangles: " + std::to_string(s.triangles) + " in the tree, of " + std::to_string(r.input_triangles) +
          " (zero-area ones are left out)\n";
     t += "nodes: " + std::to_string(s.nodes) + " (" + std::to_string(r.inner_nodes) + " inner, " +
