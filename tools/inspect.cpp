@@ -100,8 +100,10 @@ int main(int argc, char **argv)
         if (std::filesystem::is_regular_file(bunny, ec) && kt::load_mesh(bunny, mesh, error)) {
             report.source = bunny + ", the default";
         } else {
+            // Say why: no bunny at all, or one that would not load.
+            report.source = "generated: no MESH given and " +
+                            (error.empty() ? "no " + bunny : bunny + " did not load: " + error);
             mesh = kt::torus(96, 48, 1.0, 0.35, 0.6);
-            report.source = "no MESH given and no bunny in KDRT_MESH_DIR (" + std::string(KDRT_MESH_DIR) + "): generated";
         }
     } else {
         if (!kt::load_mesh(mesh_path, mesh, error)) return fail("cannot read mesh '" + mesh_path + "': " + error);
