@@ -377,6 +377,31 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
                                      kdrt_tree **out_tree, kdrt_build_report *report);
 KDRT_API void kdrt_tree_free(kdrt_tree *tree); /* NULL is fine */
 KDRT_API void kdrt_tree_get_stats(const kdrt_tree *tree, kdrt_tree_stats *out_stats);
+/* Inspection: walk a built tree without its internals (tools, debugging, visualisation).
+   Nodes are numbered 0 (the root) to kdrt_tree_node_count() - 1 in depth-first order, the below
+   child first: an inner node's below child is index + 1 and its whole subtree comes before its
+   above child. Triangles reach a node's subtree only through its leaves, so the triangles of a
+   subtree are those its leaves refer to. A tree with no tree (max_leaf_size 0) or no triangles is
+   one leaf. kdrt_tree_node() finds a node's box and depth by descending from the root: O(depth). */
+typedef struct kdrt_node_info {
+    int is_leaf;              /* 1 for a leaf, 0 for an inner node */
+    int axis;                 /* inner node: split axis, 0 x, 1 y, 2 z; leaf: -1 */
+    float split;              /* inner node: plane position on axis; leaf: 0 */
+    uint32_t below;           /* inner node: child on the low side (always index + 1); leaf: KDRT_INVALID_ID */
+    uint32_t above;           /* inner node: child on the high side; leaf: KDRT_INVALID_ID */
+    uint32_t depth;           /* the root is depth 0 */
+    kdrt_aabb bounds;         /* kdrt_tree_bounds() cut by the ancestors' splits (as sah_cost uses) */
+    uint32_t triangle_count;  /* leaf: how many triangles it refers to; inner node: 0 */
+    uint32_t first_reference; /* leaf: its references are first_reference .. + triangle_count - 1 */
+} kdrt_node_info;
+/* Nodes in the tree (kdrt_tree_stats.nodes); NULL gives 0. */
+KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree);
+/* Describes node index. KDRT_ERROR_NULL_ARGUMENT for a NULL tree or out_info,
+   KDRT_ERROR_INDEX_OUT_OF_RANGE for index >= kdrt_tree_node_count(); *out_info is then untouched. */
+KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_node_info *out_info);
+/* The caller's triangle index (as in kdrt_hit.triangle) that leaf reference number reference refers
+   to, for reference < kdrt_tree_stats.triangle_refs; errors as kdrt_tree_node(). */
+KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference, uint32_t *out_triangle);
 KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree);
 
 /* Nearest hit in the ray's range: returns 1 and fills *hit, or returns 0 with
@@ -1880,6 +1905,61 @@ KDRT_API void kdrt_tree_get_stats(const kdrt_tree *tree, kdrt_tree_stats *out_st
     if (!out_stats) return;
     if (!tree) { memset(out_stats, 0, sizeof *out_stats); return; }
     *out_stats = tree->stats;
+}
+
+KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree)
+{
+    return tree ? tree->stats.nodes : 0u;
+}
+
+KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_node_info *out_info)
+{
+    kdrt_node_info info;
+    const kdrt__node *n;
+    uint32_t at = 0;
+    if (!tree || !out_info) return KDRT_ERROR_NULL_ARGUMENT;
+    if (index >= tree->stats.nodes) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
+    memset(&info, 0, sizeof info);
+    info.bounds = tree->bounds;
+    /* Depth-first numbering: node index lies in the above child's subtree exactly when it is at
+       or past the above child, else in the below child's. */
+    while (at != index) {
+        n = &tree->nodes[at];
+        info.axis = (int)(n->bits & 3u);
+        KDRT_ASSERT((uint32_t)info.axis != KDRT__LEAF && index > at);
+        if ((uint32_t)info.axis == KDRT__LEAF) return KDRT_ERROR_INDEX_OUT_OF_RANGE; /* not reached */
+        if (index >= n->bits >> 2) {
+            info.bounds.min[info.axis] = n->u.split;
+            at = n->bits >> 2;
+        } else {
+            info.bounds.max[info.axis] = n->u.split;
+            at += 1;
+        }
+        info.depth += 1;
+    }
+    n = &tree->nodes[index];
+    if ((n->bits & 3u) == KDRT__LEAF) {
+        info.is_leaf = 1;
+        info.axis = -1;
+        info.below = info.above = KDRT_INVALID_ID;
+        info.triangle_count = n->bits >> 2;
+        info.first_reference = n->u.first_ref;
+    } else {
+        info.axis = (int)(n->bits & 3u);
+        info.split = n->u.split;
+        info.below = index + 1u;
+        info.above = n->bits >> 2;
+    }
+    *out_info = info;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference, uint32_t *out_triangle)
+{
+    if (!tree || !out_triangle) return KDRT_ERROR_NULL_ARGUMENT;
+    if ((uint64_t)reference >= tree->stats.triangle_refs) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
+    *out_triangle = tree->triangles[tree->refs[reference]].id; /* refs index the packed records */
+    return KDRT_SUCCESS;
 }
 
 KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)

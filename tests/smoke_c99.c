@@ -1,5 +1,5 @@
 /* The header with its implementation as strict C99 (-std=c99 -Wall -Wextra -pedantic -Werror):
-   a tiny tree, one hit, one miss, kdrt_result_string, one refraction and the medium stack. */
+   a tiny tree, one hit, one miss, walking the tree, kdrt_result_string, one refraction and the medium stack. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -34,6 +34,10 @@ int main(void)
     float refracted[3];
     kdrt_media_stack media;
     kdrt_media_crossing crossing;
+    kdrt_tree_stats stats;
+    kdrt_node_info node;
+    uint32_t triangle = 0, i, k;
+    uint64_t refs = 0;
 
     mesh.positions = vertices;
     mesh.vertex_count = 4;
@@ -51,6 +55,24 @@ int main(void)
     check(kdrt_intersect(tree, &beside, &hit) == 0, "miss");
     check(hit.triangle == KDRT_INVALID_ID, "miss: triangle is KDRT_INVALID_ID");
     check(kdrt_occluded(tree, &beside) == 0, "miss: not occluded");
+
+    /* Inspection: walking every node finds the references kdrt_tree_get_stats() counts, each
+       naming one of the two triangles. */
+    kdrt_tree_get_stats(tree, &stats);
+    check(kdrt_tree_node_count(tree) == stats.nodes && stats.nodes > 0, "inspection: node count");
+    for (i = 0; i < kdrt_tree_node_count(tree); ++i) {
+        check(kdrt_tree_node(tree, i, &node) == KDRT_SUCCESS, "inspection: kdrt_tree_node");
+        if (!node.is_leaf) continue;
+        for (k = 0; k < node.triangle_count; ++k) {
+            check(kdrt_tree_reference(tree, node.first_reference + k, &triangle) == KDRT_SUCCESS && triangle < 2,
+                  "inspection: a leaf's reference names a triangle");
+            ++refs;
+        }
+    }
+    check(refs == stats.triangle_refs, "inspection: references walked = kdrt_tree_stats.triangle_refs");
+    check(kdrt_tree_node(tree, stats.nodes, &node) == KDRT_ERROR_INDEX_OUT_OF_RANGE, "inspection: node out of range");
+    check(kdrt_tree_reference(tree, (uint32_t)stats.triangle_refs, &triangle) == KDRT_ERROR_INDEX_OUT_OF_RANGE,
+          "inspection: reference out of range");
     kdrt_tree_free(tree);
 
     check(strcmp(kdrt_result_string(KDRT_SUCCESS), "success") == 0, "kdrt_result_string(KDRT_SUCCESS)");

@@ -1,0 +1,152 @@
+// kdrt-inspect: build kdrt's tree over a mesh and describe it: nodes, leaves, depth and leaf-size
+// histograms, duplicated references, SAH cost, memory, build time; optionally its boxes down to a
+// depth as a wireframe (OBJ or PLY) and a picture of them over the mesh.
+//
+//   kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json] [--boxes OUT.obj|OUT.ply]
+//                [--depth D] [--picture OUT.png] [--size WxH]
+#include "tree_inspect.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#ifndef KDRT_MESH_DIR
+#define KDRT_MESH_DIR ""
+#endif
+
+namespace {
+
+const char *const usage =
+    "usage: kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json]\n"
+    "                    [--boxes OUT.obj|OUT.ply] [--depth D] [--picture OUT.png] [--size WxH]\n"
+    "Builds kdrt's kd-tree over MESH (anything Assimp reads) and prints its statistics: nodes,\n"
+    "leaves (and empty ones), leaves by depth and by triangle count, references per triangle, SAH\n"
+    "cost, bytes and build time. Without MESH: the Stanford bunny from KDRT_MESH_DIR, else a\n"
+    "generated torus.\n"
+    "  --builder B     sah (the default) or median\n"
+    "  --leaf-size N   most triangles in a leaf (default 4; 0: no tree)\n"
+    "  --json          the statistics as JSON on standard output\n"
+    "  --boxes FILE    the boxes of the nodes down to --depth as a wireframe, .obj or .ply\n"
+    "  --depth D       deepest level of boxes for --boxes and --picture (default 4)\n"
+    "  --picture FILE  the mesh traced with kdrt and the boxes drawn over it, a .png\n"
+    "  --size WxH      the picture's size (default 800x600)\n";
+
+int fail(const std::string &message)
+{
+    std::fprintf(stderr, "kdrt-inspect: %s\n", message.c_str());
+    return 1;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    std::string mesh_path, boxes_path, picture_path, builder_name = "sah";
+    unsigned long leaf_size = 4, depth = 4, width = 800, height = 600;
+    bool json = false;
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        const bool has_value = i + 1 < argc;
+        if (arg == "--help" || arg == "-h") {
+            std::fputs(usage, stdout);
+            return 0;
+        } else if (arg == "--json") {
+            json = true;
+        } else if (arg == "--builder" && has_value) {
+            builder_name = argv[++i];
+            if (builder_name != "sah" && builder_name != "median")
+                return fail("--builder wants median or sah, not '" + builder_name + "'");
+        } else if (arg == "--leaf-size" && has_value) {
+            if (!kdrt_tools::parse_count(argv[++i], KDRT_MAX_TRIANGLES, leaf_size))
+                return fail(std::string("--leaf-size wants a whole number, not '") + argv[i] + "'");
+        } else if (arg == "--depth" && has_value) {
+            if (!kdrt_tools::parse_count(argv[++i], KDRT_MAX_DEPTH, depth))
+                return fail(std::string("--depth wants a whole number from 0 to 64, not '") + argv[i] + "'");
+        } else if (arg == "--boxes" && has_value) {
+            boxes_path = argv[++i];
+        } else if (arg == "--picture" && has_value) {
+            picture_path = argv[++i];
+        } else if (arg == "--size" && has_value) {
+            const std::string size = argv[++i];
+            const size_t x = size.find('x');
+            if (x == std::string::npos || !kdrt_tools::parse_count(size.substr(0, x).c_str(), 8192, width) ||
+                !kdrt_tools::parse_count(size.substr(x + 1).c_str(), 8192, height) || width == 0 || height == 0)
+                return fail("--size wants WxH, each from 1 to 8192, not '" + size + "'");
+        } else if (arg.size() > 1 && arg[0] == '-') {
+            return fail("unknown option or missing value: '" + arg + "'\n" + usage);
+        } else if (mesh_path.empty()) {
+            mesh_path = arg;
+        } else {
+            return fail("one mesh at most ('" + mesh_path + "', then '" + arg + "')");
+        }
+    }
+    // Refuse bad output names before the build, not after it.
+    auto has_extension = [](const std::string &p, const char *ext) {
+        return std::filesystem::path(p).extension() == ext;
+    };
+    if (!boxes_path.empty() && !has_extension(boxes_path, ".obj") && !has_extension(boxes_path, ".ply"))
+        return fail("--boxes wants a file named .obj or .ply, not '" + boxes_path + "'");
+    if (!picture_path.empty() && !has_extension(picture_path, ".png"))
+        return fail("--picture wants a file named .png, not '" + picture_path + "'");
+
+    kdrt_tools::TreeReport report;
+    kt::Mesh mesh;
+    std::string error;
+    if (mesh_path.empty()) {
+        const std::string bunny =
+            (std::filesystem::path(KDRT_MESH_DIR) / "common" / "stanford-bunny.obj").lexically_normal().string();
+        std::error_code ec;
+        if (std::filesystem::is_regular_file(bunny, ec) && kt::load_mesh(bunny, mesh, error)) {
+            report.source = bunny + ", the default";
+        } else {
+            // Say why: no bunny at all, or one that would not load.
+            report.source = "generated: no MESH given and " +
+                            (error.empty() ? "no " + bunny : bunny + " did not load: " + error);
+            mesh = kt::torus(96, 48, 1.0, 0.35, 0.6);
+        }
+    } else {
+        if (!kt::load_mesh(mesh_path, mesh, error)) return fail("cannot read mesh '" + mesh_path + "': " + error);
+        report.source = mesh_path;
+    }
+    report.mesh = mesh.name;
+    report.builder = builder_name;
+    report.leaf_size = uint32_t(leaf_size);
+    report.input_triangles = mesh.triangle_count();
+
+    const kdrt_triangles view = mesh.view();
+    kdrt_build_options options = kdrt_default_build_options();
+    options.builder = builder_name == "median" ? KDRT_BUILDER_MEDIAN : KDRT_BUILDER_SAH;
+    options.max_leaf_size = uint32_t(leaf_size);
+    options.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;  // inspect what can be built
+    kdrt_tree *tree = nullptr;
+    kdrt_build_report build_report;
+    const auto start = std::chrono::steady_clock::now();
+    const kdrt_result built = kdrt_tree_build(&view, &options, &tree, &build_report);
+    report.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    if (built != KDRT_SUCCESS) return fail(std::string("cannot build the tree: ") + kdrt_result_string(built));
+
+    int status = 0;
+    std::vector<kdrt_tools::DepthBox> boxes;
+    if (!kdrt_tools::walk_tree(tree, report, error)) {
+        status = fail(error);
+    } else {
+        std::fputs((json ? kdrt_tools::report_json(report) : kdrt_tools::report_text(report)).c_str(), stdout);
+        if (build_report.skipped_triangles && !json)
+            std::printf("skipped: %u invalid triangles\n", build_report.skipped_triangles);
+    }
+    if (status == 0 && (!boxes_path.empty() || !picture_path.empty()) &&
+        !kdrt_tools::boxes_to_depth(tree, uint32_t(depth), boxes, error))
+        status = fail(error);
+    if (status == 0 && !boxes_path.empty()) {
+        if (!kdrt_tools::write_boxes(boxes, boxes_path, error)) status = fail(error);
+        else std::fprintf(stderr, "kdrt-inspect: %zu boxes (depth 0 to %lu) -> %s\n", boxes.size(), depth, boxes_path.c_str());
+    }
+    if (status == 0 && !picture_path.empty()) {
+        if (!kdrt_tools::write_boxes_picture(mesh, tree, boxes, int(width), int(height), picture_path, error))
+            status = fail(error);
+        else std::fprintf(stderr, "kdrt-inspect: picture -> %s\n", picture_path.c_str());
+    }
+    kdrt_tree_free(tree);
+    return status;
+}

@@ -1,0 +1,60 @@
+// What kdrt-inspect computes, as functions its tests call: a built tree's statistics from a walk
+// with the inspection API, its boxes down to a depth as a wireframe (OBJ or PLY), and a picture of
+// those boxes over the mesh, rendered with kdrt rays.
+#pragma once
+
+#include "kdrt.h"
+#include "mesh_io.hpp"
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace kdrt_tools {
+
+struct TreeReport {
+    std::string mesh;        // its name
+    std::string source;      // where it came from (a path, or why it was generated)
+    std::string builder;     // "median" or "sah"
+    uint32_t leaf_size = 0;
+    uint32_t input_triangles = 0;
+    double build_ms = 0;     // kdrt_tree_build on the calling thread
+    kdrt_tree_stats stats{}; // kdrt_tree_get_stats
+    // From the walk:
+    uint64_t inner_nodes = 0, leaves = 0, empty_leaves = 0, references = 0;
+    std::map<uint32_t, uint64_t> leaves_by_depth;     // depth -> leaves
+    std::map<uint32_t, uint64_t> leaves_by_triangles; // triangles in the leaf -> leaves
+};
+
+// Walks `tree` and fills the walk's fields of `report` and its stats. false with a message if
+// the walk disagrees with kdrt_tree_get_stats (which would be a kdrt bug) or the API fails.
+bool walk_tree(const kdrt_tree *tree, TreeReport &report, std::string &error);
+
+std::string report_text(const TreeReport &report);
+std::string report_json(const TreeReport &report);
+
+// The boxes of every node at depth <= max_depth, shallowest first (depth-first within a level).
+struct DepthBox {
+    kdrt_aabb box;
+    uint32_t depth;
+};
+bool boxes_to_depth(const kdrt_tree *tree, uint32_t max_depth, std::vector<DepthBox> &out, std::string &error);
+
+// Wireframe of the boxes: 8 corners and 12 edges each, corners not shared between boxes. The
+// format follows the extension: .obj (v and l lines) or .ply (ASCII, vertex and edge elements).
+// Written to a temporary file renamed over path, so a failure leaves no file.
+bool write_boxes(const std::vector<DepthBox> &boxes, const std::string &path, std::string &error);
+
+// The mesh traced with kdrt rays (a headlight, as kdrt-render-mesh) and the boxes' edges drawn
+// over it, coloured by depth; a PNG written as write_boxes writes.
+bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
+                         int height, const std::string &path, std::string &error);
+
+// Writes text to path through a temporary file beside it and a rename: all or nothing.
+bool write_file_atomically(const std::string &path, const std::string &text, std::string &error);
+
+// A whole number in [0, max] with nothing after it.
+bool parse_count(const char *text, unsigned long max, unsigned long &out);
+
+}  // namespace kdrt_tools
