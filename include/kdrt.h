@@ -134,6 +134,9 @@
      the benchmark's meshes of 1,000 triangles or more, SAH trees of leaf size 4 with the default
      costs take 48 to 63 bytes a triangle, about 22 of them the copy, and max_leaf_size = 0 takes
      26.
+     Inspection: kdrt_tree_node_count(), kdrt_tree_node() (a node's kind, split, children, box,
+     depth and leaf references) and kdrt_tree_reference() (the caller's triangle a reference
+     names) walk a built tree without its internals; tools/kdrt-inspect is built on them.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
