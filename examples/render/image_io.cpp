@@ -8,6 +8,7 @@
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 #include <ImathBox.h>
+#include <half.h>
 #include <stb_image.h>
 #include <stb_image_write.h>
 
@@ -93,12 +94,19 @@ bool write_exr(const std::string &tmp, const Image &image, bool exr_float, std::
         const Imf::PixelType type = exr_float ? Imf::FLOAT : Imf::HALF;
         for (const char *c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(type));
         Imf::FrameBuffer frame;
-        // The slices are our floats; OpenEXR converts them to half when the channels are half.
+        // OpenEXR converts pixel types when reading, not when writing: half channels get halves.
+        std::vector<half> halves;
         char *base = reinterpret_cast<char *>(const_cast<float *>(image.rgb.data()));
-        const size_t xs = 3 * sizeof(float), ys = xs * image.width;
-        frame.insert("R", Imf::Slice(Imf::FLOAT, base, xs, ys));
-        frame.insert("G", Imf::Slice(Imf::FLOAT, base + sizeof(float), xs, ys));
-        frame.insert("B", Imf::Slice(Imf::FLOAT, base + 2 * sizeof(float), xs, ys));
+        size_t component = sizeof(float);
+        if (!exr_float) {
+            halves.assign(image.rgb.begin(), image.rgb.end());  // rounded to nearest
+            base = reinterpret_cast<char *>(halves.data());
+            component = sizeof(half);
+        }
+        const size_t xs = 3 * component, ys = xs * image.width;
+        frame.insert("R", Imf::Slice(type, base, xs, ys));
+        frame.insert("G", Imf::Slice(type, base + component, xs, ys));
+        frame.insert("B", Imf::Slice(type, base + 2 * component, xs, ys));
         Imf::OutputFile file(tmp.c_str(), header);
         file.setFrameBuffer(frame);
         file.writePixels(int(image.height));

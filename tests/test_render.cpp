@@ -1,0 +1,324 @@
+// kdrt-render (examples/render): presets render deterministically on any thread count, the glass
+// path refracts as optics says (checked against an exact double-precision trace and the paraxial
+// ball-lens formula), and image files are written atomically and read back.
+#include "render.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <stb_image.h>
+
+#include <sys/stat.h>
+#include <unistd.h>
+#include <dirent.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+namespace {
+
+uint64_t fnv1a(const std::vector<float> &data)
+{
+    uint64_t h = 1469598103934665603ull;
+    const unsigned char *bytes = reinterpret_cast<const unsigned char *>(data.data());
+    for (size_t i = 0; i < data.size() * sizeof(float); ++i) h = (h ^ bytes[i]) * 1099511628211ull;
+    return h;
+}
+
+kr::Image render_scene(const kr::Scene &scene, unsigned threads, uint32_t w, uint32_t h, uint64_t seed = 0)
+{
+    kr::Renderer renderer;
+    std::string error;
+    INFO(error);
+    REQUIRE(renderer.prepare(scene, threads, error));
+    kr::RenderOptions options;
+    options.width = w, options.height = h, options.threads = threads, options.seed = seed;
+    kr::Image image;
+    REQUIRE(renderer.render(options, image, error));
+    return image;
+}
+
+// A fresh empty folder under /tmp, removed (with what the test left in it) by the destructor.
+struct TempDir {
+    std::string path;
+    TempDir()
+    {
+        char name[] = "/tmp/kdrt-render-test-XXXXXX";
+        REQUIRE(mkdtemp(name) != nullptr);
+        path = name;
+    }
+    ~TempDir()
+    {
+        for (const std::string &f : entries()) {
+            const std::string p = path + "/" + f;
+            if (std::remove(p.c_str()) != 0) rmdir(p.c_str());
+        }
+        rmdir(path.c_str());
+    }
+    std::vector<std::string> entries() const
+    {
+        std::vector<std::string> names;
+        if (DIR *d = opendir(path.c_str())) {
+            while (dirent *e = readdir(d))
+                if (std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0) names.push_back(e->d_name);
+            closedir(d);
+        }
+        std::sort(names.begin(), names.end());
+        return names;
+    }
+};
+
+// A scene holding one glass sphere of radius 1 at the origin and nothing else.
+kr::Scene glass_ball(double ior)
+{
+    kr::Scene scene;
+    kr::Material glass;
+    glass.kind = kr::MaterialKind::glass;
+    glass.ior = ior;
+    scene.materials.push_back(glass);
+    kr::Sphere ball;
+    ball.center = {0, 0, 0};
+    ball.radius = 1;
+    scene.spheres.push_back(ball);
+    return scene;
+}
+
+// Snell's law in vector form, in double: d and n unit, n facing against d.
+kr::Vec3 refract_exact(kr::Vec3 d, kr::Vec3 n, double eta)
+{
+    const double c = -kr::dot(d, n), k = 1 - eta * eta * (1 - c * c);
+    REQUIRE(k >= 0);
+    return eta * d + (eta * c - std::sqrt(k)) * n;
+}
+
+// Where a ray parallel to -z at height h (in x) crosses the axis after a ball of index n and
+// radius 1 at the origin: the exact trace in double, no rounding to float anywhere.
+double exact_axis_crossing(double h, double n)
+{
+    using kr::Vec3;
+    const Vec3 d0{0, 0, -1};
+    const Vec3 p1{h, 0, std::sqrt(1 - h * h)};  // entry, on the sphere, normal p1
+    const Vec3 d1 = kr::normalize(refract_exact(d0, p1, 1 / n));
+    const double t = -2 * kr::dot(p1, d1);        // the chord: |p1 + t d1| = 1
+    const Vec3 p2 = p1 + t * d1;
+    const Vec3 d2 = kr::normalize(refract_exact(d1, -1.0 * p2, n));
+    return p2.z - p2.x / d2.x * d2.z;              // z where x = 0
+}
+
+}  // namespace
+
+TEST_CASE("render: the presets are the original's, in its order", "[render]")
+{
+    const std::vector<std::string> expected = {
+        "PHASE_1", "PHASE_2_NO_SHADOWS", "PHASE_2_HARD_SHADOWS", "PHASE_2_SOFT_SHADOWS",
+        "PHASE_3_REFLECTION", "PHASE_3_NO_INTERPOLATION", "PHASE_3_INTERPOLATION", "PHASE_4_REFRACTION",
+        "PHASE_4_KDTREE", "PICTURE", "BENCHMARKS"};
+    CHECK(kr::preset_names() == expected);
+    kr::Scene scene;
+    std::string error;
+    CHECK(kr::make_preset("picture", scene, error));  // case-insensitive
+    CHECK(scene.name == "PICTURE");
+    CHECK_FALSE(kr::make_preset("PHASE_5", scene, error));
+    CHECK(error.find("unknown preset 'PHASE_5'") != std::string::npos);
+    CHECK(error.find("BENCHMARKS") != std::string::npos);
+}
+
+TEST_CASE("render: every preset renders the same image on 1 and 3 threads, and not a uniform one", "[render]")
+{
+    for (const std::string &name : kr::preset_names()) {
+        INFO("preset " << name);
+        kr::Scene scene;
+        std::string error;
+        REQUIRE(kr::make_preset(name, scene, error));
+        // Small and at most 2 samples a pixel, to stay fast; every other setting the preset's.
+        scene.settings.nsamples = std::min(scene.settings.nsamples, 2u);
+        INFO(error);
+        REQUIRE(kr::load_meshes(scene, error));
+        const kr::Image one = render_scene(scene, 1, 48, 36);
+        const kr::Image three = render_scene(scene, 3, 48, 36);
+        REQUIRE(one.rgb.size() == 48 * 36 * 3);
+        CHECK(fnv1a(one.rgb) == fnv1a(three.rgb));
+        const auto range = std::minmax_element(one.rgb.begin(), one.rgb.end());
+        CHECK(*range.second - *range.first > 0.2f);
+        for (float v : one.rgb) REQUIRE(std::isfinite(v));
+    }
+}
+
+TEST_CASE("render: the seed changes the jittered samples, and nothing else does", "[render]")
+{
+    kr::Scene scene;
+    std::string error;
+    REQUIRE(kr::make_preset("PHASE_2_SOFT_SHADOWS", scene, error));
+    scene.settings.nsamples = 2;
+    const kr::Image a = render_scene(scene, 2, 40, 30, 1), b = render_scene(scene, 1, 40, 30, 1);
+    const kr::Image c = render_scene(scene, 2, 40, 30, 2);
+    CHECK(fnv1a(a.rgb) == fnv1a(b.rgb));
+    CHECK(fnv1a(a.rgb) != fnv1a(c.rgb));
+}
+
+TEST_CASE("render: a ray through a glass sphere's centre passes undeviated", "[render][glass]")
+{
+    const kr::Scene scene = glass_ball(1.5);
+    kr::Renderer renderer;
+    std::string error;
+    REQUIRE(renderer.prepare(scene, 1, error));
+    // Along the axis and along an oblique line through the centre.
+    for (const kr::Vec3 dir : {kr::Vec3{0, 0, -1}, kr::normalize(kr::Vec3{-3, -1, -2})}) {
+        const kr::Vec3 origin = -4.0 * dir;
+        const std::vector<kr::PathEvent> path = renderer.trace_specular_path(origin, dir, 8);
+        REQUIRE(path.size() == 2);  // in, out, then nothing more to meet
+        CHECK(path[0].refracted);
+        CHECK(path[1].refracted);
+        const kr::Vec3 entry = -1.0 * dir, exit = dir;  // the sphere's points on the line
+        CHECK(kr::length(path[0].point - entry) < 1e-12);
+        CHECK(kr::length(path[0].direction - dir) < 1e-7);  // float optics
+        // The inner ray starts off the surface by kdrt's offset, 256 ulps of each coordinate (up
+        // to 2^-15 of it), not exactly along the ray: up to ~3e-5 off the centre line, which tips
+        // the exit normal and so the exit direction by about (n - 1) times that. A wrong index or
+        // normal would bend it by tenths.
+        CHECK(kr::length(path[1].point - exit) < 5e-5);
+        CHECK(kr::length(path[1].direction - dir) < 5e-5);
+    }
+}
+
+TEST_CASE("render: a glass ball lens focuses paraxial rays at f = nD / (4 (n - 1))", "[render][glass]")
+{
+    // Heights h <= 1% of the radius. The exact (double) trace's focus lies short of the paraxial
+    // one by the spherical aberration, about (h/R)^2 times a factor of order 1: under 1e-4 of f
+    // here, so 0.5% is a bound with room, and the renderer's float optics add about 1e-5.
+    // At h = 0.5 R the aberration is many percent: the same check fails there, as it should.
+    for (const double n : {1.5, 2.0}) {
+        INFO("n = " << n);
+        const kr::Scene scene = glass_ball(n);
+        kr::Renderer renderer;
+        std::string error;
+        REQUIRE(renderer.prepare(scene, 1, error));
+        const double f = n * 2.0 / (4 * (n - 1));  // D = 2: 1.5 for n = 1.5, 1 (the surface) for n = 2
+        for (int i = 1; i <= 10; ++i) {
+            const double h = 0.001 * i;
+            INFO("h = " << h);
+            const std::vector<kr::PathEvent> path = renderer.trace_specular_path({h, 0, 10}, {0, 0, -1}, 8);
+            REQUIRE(path.size() == 2);
+            const kr::Vec3 p = path[1].point, d = path[1].direction;
+            REQUIRE(d.x < 0);  // bent towards the axis
+            const double z = p.z - p.x / d.x * d.z;
+            const double exact = exact_axis_crossing(h, n);
+            CHECK(std::fabs(z - exact) < 1e-4 * f);        // the renderer's path against the exact trace
+            CHECK(std::fabs(-z - f) < 0.005 * f);          // the paraxial focus, behind the ball (-z)
+            CHECK(std::fabs(-exact - f) < 1e-3 * f);
+        }
+        CHECK(std::fabs(-exact_axis_crossing(0.5, n) - f) > 0.03 * f);  // the aberration is real
+    }
+}
+
+TEST_CASE("render: total internal reflection keeps a ray inside, the stack in step", "[render][glass]")
+{
+    // A ray entering a high-index ball near grazing meets the far side beyond the critical angle
+    // only for n large enough; at n = 3 a ray entering at 80 degrees refracts to 19 degrees inside
+    // and leaves at the same 19, so it never reflects totally: what enters a sphere always leaves.
+    const kr::Scene scene = glass_ball(3.0);
+    kr::Renderer renderer;
+    std::string error;
+    REQUIRE(renderer.prepare(scene, 1, error));
+    const std::vector<kr::PathEvent> path = renderer.trace_specular_path({0.985, 0, 10}, {0, 0, -1}, 8);
+    REQUIRE(path.size() == 2);
+    CHECK(path[1].refracted);
+    CHECK_FALSE(path[1].reflected);
+}
+
+TEST_CASE("render: EXR and PNG files read back with the pixels written", "[render][image]")
+{
+    TempDir dir;
+    kr::Image image;
+    image.width = 7, image.height = 5;
+    for (uint32_t i = 0; i < 7 * 5 * 3; ++i) image.rgb.push_back(float(i % 11) * 0.173f + (i % 3 == 0 ? 1e-3f : 0.0f));
+    image.rgb[4] = 37.5f;  // beyond 1: kept in EXR, clamped in PNG
+    std::string error;
+
+    SECTION("half EXR: within half precision") {
+        const std::string path = dir.path + "/half.exr";
+        REQUIRE(kr::write_image(path, image, false, error));
+        kr::Image back;
+        REQUIRE(kr::read_image(path, back, error));
+        REQUIRE(back.width == 7);
+        REQUIRE(back.height == 5);
+        for (size_t i = 0; i < image.rgb.size(); ++i) CHECK(std::fabs(back.rgb[i] - image.rgb[i]) <= 0x1p-11f * image.rgb[i] + 1e-7f);
+    }
+    SECTION("float EXR: exact") {
+        const std::string path = dir.path + "/float.exr";
+        REQUIRE(kr::write_image(path, image, true, error));
+        kr::Image back;
+        REQUIRE(kr::read_image(path, back, error));
+        CHECK(back.rgb == image.rgb);
+        double rmse = 1;
+        REQUIRE(kr::image_rmse(image, back, rmse, error));
+        CHECK(rmse == 0);
+    }
+    SECTION("PNG: sRGB bytes of the clamped values, through stb_image") {
+        const std::string path = dir.path + "/out.PNG";  // extensions are case-insensitive
+        REQUIRE(kr::write_image(path, image, false, error));
+        int w = 0, h = 0, c = 0;
+        unsigned char *bytes = stbi_load(path.c_str(), &w, &h, &c, 3);
+        REQUIRE(bytes != nullptr);
+        REQUIRE(w == 7);
+        REQUIRE(h == 5);
+        for (size_t i = 0; i < image.rgb.size(); ++i) {
+            const double v = std::min(1.0, double(image.rgb[i]));
+            const double srgb = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+            CHECK(int(bytes[i]) == int(std::lround(255 * srgb)));
+        }
+        stbi_image_free(bytes);
+    }
+    CHECK(dir.entries().size() == 1);  // the file, and no temporary beside it
+}
+
+TEST_CASE("render: a failed write leaves no output and no temporary file", "[render][image]")
+{
+    TempDir dir;
+    kr::Image image;
+    image.width = 2, image.height = 2;
+    image.rgb.assign(12, 0.5f);
+    std::string error;
+
+    CHECK_FALSE(kr::write_image(dir.path + "/out.bmp", image, false, error));
+    CHECK(error.find(".png or .exr") != std::string::npos);
+    CHECK_FALSE(kr::write_image(dir.path + "/no-such-folder/out.png", image, false, error));
+    CHECK(error.find("cannot create") != std::string::npos);
+    CHECK_FALSE(kr::write_image(dir.path + "/no-such-folder/out.exr", image, false, error));
+    CHECK(dir.entries().empty());
+    // The output path is a folder: refused before anything is written.
+    REQUIRE(mkdir((dir.path + "/taken.exr").c_str(), 0755) == 0);
+    CHECK_FALSE(kr::write_image(dir.path + "/taken.exr", image, false, error));
+    CHECK(error.find("not a regular file") != std::string::npos);
+    CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
+    // An image whose pixels do not match its size is refused, not half written.
+    image.rgb.pop_back();
+    CHECK_FALSE(kr::write_image(dir.path + "/short.png", image, false, error));
+    CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
+}
+
+TEST_CASE("render: a missing mesh is an error naming it, and sizes must match for the RMSE", "[render]")
+{
+    kr::Scene scene;
+    std::string error;
+    REQUIRE(kr::make_preset("PICTURE", scene, error));
+    REQUIRE(kr::apply_setting(scene, "MESH", "/no/such/mesh.obj", error));
+    CHECK_FALSE(kr::load_meshes(scene, error));
+    CHECK(error.find("/no/such/mesh.obj") != std::string::npos);
+
+    kr::Image a, b;
+    a.width = 2, a.height = 2, a.rgb.assign(12, 0.0f);
+    b.width = 2, b.height = 3, b.rgb.assign(18, 0.0f);
+    double rmse = 0;
+    CHECK_FALSE(kr::image_rmse(a, b, rmse, error));
+    CHECK(error.find("sizes must match") != std::string::npos);
+    b.height = 2, b.rgb.assign(12, 0.0f);
+    b.rgb[0] = 1.2f;  // one channel of 12 off by 1.2: sqrt(1.44 / 12)
+    REQUIRE(kr::image_rmse(a, b, rmse, error));
+    CHECK(rmse == Approx(std::sqrt(1.44 / 12)).epsilon(1e-6));
+}
