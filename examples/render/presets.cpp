@@ -144,7 +144,7 @@ void two_meshes(Scene &scene)
     add_quad(scene, {-3, 0, 2.5}, {6, 0, 0}, {0, 0, -3.7}, add_phong(scene, "floor", {0.7, 0.7, 0.7}, -1, {0, 0, 0}));
     // The first mesh is the one MESH replaces; the second stays (its own stand-in without meshes).
     add_mesh(scene, "stanford-bunny", {-0.7, 0, 0.1}, 1.15, 0, add_phong(scene, "gold", {0.85, 0.65, 0.25}));
-    add_mesh(scene, "spot", {0.75, 0, 0.2}, 1.1, -35, add_phong(scene, "cow", {0.6, 0.65, 0.9}));
+    add_mesh(scene, "spot", {0.75, 0, 0.2}, 1.1, 145, add_phong(scene, "cow", {0.6, 0.65, 0.9}));
     add_sphere_light(scene, {-1.5, 3.0, 3.0}, 0.3, {1, 1, 1});
 }
 
@@ -176,10 +176,10 @@ void cornell_box(Scene &scene)
     add_quad(scene, {-1, 0, 1}, {0, 0, -2}, {0, 2, 0}, red);       // left
     add_quad(scene, {1, 0, -1}, {0, 0, 2}, {0, 2, 0}, green);      // right
     const int checker = add_checker(scene, "ball checker", {0.95, 0.85, 0.3}, {0.2, 0.3, 0.8}, 8);
-    add_sphere(scene, {0.45, 0.32, 0.45}, 0.32, add_glass(scene, 1.5, {1, 1, 1}));
-    add_sphere(scene, {-0.45, 0.4, -0.45}, 0.4, add_mirror(scene, {0.92, 0.92, 0.92}));
-    add_sphere(scene, {0.5, 0.22, -0.45}, 0.22, add_phong(scene, "ball", {1, 1, 1}, checker));
-    add_mesh(scene, "stanford-bunny", {-0.4, 0, 0.5}, 0.6, 20, add_phong(scene, "bunny", {0.8, 0.8, 0.8}));
+    add_sphere(scene, {0.05, 0.3, 0.55}, 0.3, add_glass(scene, 1.5, {1, 1, 1}));
+    add_sphere(scene, {-0.5, 0.4, -0.45}, 0.4, add_mirror(scene, {0.92, 0.92, 0.92}));
+    add_sphere(scene, {0.55, 0.25, -0.55}, 0.25, add_phong(scene, "ball", {1, 1, 1}, checker));
+    add_mesh(scene, "stanford-bunny", {-0.55, 0, 0.35}, 0.6, 20, add_phong(scene, "bunny", {0.8, 0.8, 0.8}));
     Light light;
     light.kind = LightKind::quad;
     light.corner = {-0.3, 1.995, -0.3};
