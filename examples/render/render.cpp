@@ -570,8 +570,9 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
     std::mutex progress_mutex;
     const auto start = std::chrono::steady_clock::now();
     auto last_report = start;
+    bool all_joined = false;
     auto report = [&](uint32_t done) {
-        if (!options.progress) return;
+        if (!options.progress || (done == tiles && !all_joined)) return;  // 100% once, at the end
         std::unique_lock<std::mutex> lock(progress_mutex, std::try_to_lock);
         if (!lock.owns_lock()) return;
         const auto now = std::chrono::steady_clock::now();
@@ -619,7 +620,7 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
     work();
     for (std::thread &t : helpers) t.join();
     if (options.progress) {
-        last_report = start;  // the final 100% line, whoever rendered the last tile
+        all_joined = true;
         report(tiles);
         std::fputc('\n', stderr);
     }
