@@ -216,7 +216,7 @@ TEST_CASE("render: a glass ball lens focuses paraxial rays at f = nD / (4 (n - 1
     }
 }
 
-TEST_CASE("render: total internal reflection keeps a ray inside, the stack in step", "[render][glass]")
+TEST_CASE("render: what enters a glass sphere from air always leaves it", "[render][glass]")
 {
     // A ray entering a high-index ball near grazing meets the far side beyond the critical angle
     // only for n large enough; at n = 3 a ray entering at 80 degrees refracts to 19 degrees inside
@@ -321,4 +321,127 @@ TEST_CASE("render: a missing mesh is an error naming it, and sizes must match fo
     b.rgb[0] = 1.2f;  // one channel of 12 off by 1.2: sqrt(1.44 / 12)
     REQUIRE(kr::image_rmse(a, b, rmse, error));
     CHECK(rmse == Approx(std::sqrt(1.44 / 12)).epsilon(1e-6));
+}
+
+TEST_CASE("render: nested glass, a bubble in a ball: refraction through both, or total internal reflection", "[render][glass]")
+{
+    // A glass ball (n 1.5, radius 2) around an air bubble (n 1, radius 0.5), both centred at the
+    // origin. For concentric spheres n |p x d| is the same on every segment (Bouguer's formula),
+    // so a ray parallel to the axis at height h reaches the bubble with sin(incidence) =
+    // h / (1.5 * 0.5): below the critical 1 / 1.5 for h = 0.45, above it for h = 0.6.
+    kr::Scene scene = glass_ball(1.5);
+    scene.spheres[0].radius = 2;
+    kr::Material air = scene.materials[0];
+    air.ior = 1.0;
+    scene.materials.push_back(air);
+    kr::Sphere bubble;
+    bubble.radius = 0.5;
+    bubble.material = 1;
+    scene.spheres.push_back(bubble);
+    kr::Renderer renderer;
+    std::string error;
+    REQUIRE(renderer.prepare(scene, 1, error));
+    const auto impact = [](const kr::PathEvent &e) { return kr::length(kr::cross(e.point, e.direction)); };
+
+    SECTION("h = 0.45: into the bubble and out, then out of the ball") {
+        const std::vector<kr::PathEvent> path = renderer.trace_specular_path({0.45, 0, 10}, {0, 0, -1}, 16);
+        REQUIRE(path.size() == 4);
+        const double radii[4] = {2, 0.5, 0.5, 2}, index[4] = {1.5, 1.0, 1.5, 1.0};
+        for (int i = 0; i < 4; ++i) {
+            INFO("event " << i);
+            CHECK(path[size_t(i)].refracted);
+            CHECK(std::fabs(kr::length(path[size_t(i)].point) - radii[i]) < 1e-5);
+            CHECK(std::fabs(index[i] * impact(path[size_t(i)]) - 0.45) < 1e-5);
+        }
+    }
+    SECTION("h = 0.6: reflected totally at the bubble, then out of the ball") {
+        const std::vector<kr::PathEvent> path = renderer.trace_specular_path({0.6, 0, 10}, {0, 0, -1}, 16);
+        REQUIRE(path.size() == 3);
+        CHECK(path[0].refracted);
+        CHECK(path[1].reflected);
+        CHECK_FALSE(path[1].refracted);
+        CHECK(std::fabs(kr::length(path[1].point) - 0.5) < 1e-5);
+        // The mirror image of the incoming direction about the bubble's normal.
+        const kr::Vec3 n = kr::normalize(path[1].point), in = path[0].direction;
+        const kr::Vec3 mirrored = in - 2 * kr::dot(in, n) * n;
+        CHECK(kr::length(path[1].direction - mirrored) < 1e-6);
+        CHECK(path[2].refracted);
+        CHECK(std::fabs(kr::length(path[2].point) - 2) < 1e-5);
+        CHECK(std::fabs(impact(path[2]) - 0.6) < 1e-5);  // back in air: the impact parameter again
+    }
+}
+
+TEST_CASE("render: a pixel of a lit quad is the Phong formula, evaluated by hand", "[render][phong]")
+{
+    // A quad in the plane z = 0 facing the camera at (0, 0, 3); the 1x1 image's single sample is
+    // the pixel's centre, which hits the quad's centre, (u, v) = (0.5, 0.5). A point-like light at
+    // (0, 2, 2): l = (0, 1, 1) / sqrt 2, r = (0, -1, 1) / sqrt 2, v = (0, 0, 1).
+    kr::Scene scene;
+    scene.camera = {{0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 10};
+    kr::Texture checker;
+    checker.checker_a = {0.9, 0.5, 0.25};
+    checker.checker_b = {0.1, 0.1, 0.1};
+    checker.checker_scale = 8;  // (0.5, 0.5): cell (4, 4), even: checker_a
+    scene.textures.push_back(checker);
+    kr::Material m;
+    m.ambient = {0.1, 0.05, 0.02};
+    m.diffuse = {0.5, 0.6, 0.7};
+    m.specular = {0.3, 0.3, 0.3};
+    m.shininess = 10;
+    m.texture = 0;
+    scene.materials.push_back(m);
+    kr::Quad quad;
+    quad.corner = {-1, -1, 0}, quad.edge_u = {2, 0, 0}, quad.edge_v = {0, 2, 0};
+    scene.quads.push_back(quad);
+    kr::Light light;
+    light.center = {0, 2, 2}, light.radius = 1e-3, light.color = {1, 0.5, 2};
+    scene.lights.push_back(light);
+
+    const double cos_l = std::sqrt(0.5), spec = std::pow(std::sqrt(0.5), 10);
+    const auto expect = [&](bool textured, bool specular, bool lit) {
+        const kr::Vec3 tex = textured ? checker.checker_a : kr::Vec3{1, 1, 1};
+        kr::Vec3 c = cos_l * (m.diffuse * tex);
+        if (specular) c = c + spec * m.specular;
+        return lit ? m.ambient + light.color * c : m.ambient;
+    };
+    const auto check_pixel = [&](kr::Vec3 want) {
+        const kr::Image image = render_scene(scene, 1, 1, 1);
+        CHECK(image.rgb[0] == Approx(want.x).epsilon(1e-6));
+        CHECK(image.rgb[1] == Approx(want.y).epsilon(1e-6));
+        CHECK(image.rgb[2] == Approx(want.z).epsilon(1e-6));
+    };
+    check_pixel(expect(true, true, true));
+    scene.settings.phong = false;
+    check_pixel(expect(true, false, true));
+    scene.settings.enable_textures = false;
+    check_pixel(expect(false, false, true));
+    // A sphere between the point and the light: ambient only, unless shadows are off.
+    kr::Sphere blocker;
+    blocker.center = {0, 1, 1}, blocker.radius = 0.2;
+    scene.spheres.push_back(blocker);
+    check_pixel(expect(false, false, false));
+    scene.settings.shadow_rays = 0;
+    check_pixel(expect(false, false, true));
+}
+
+TEST_CASE("render: a mirror reflects about its normal", "[render][mirror]")
+{
+    kr::Scene scene;
+    kr::Material mirror;
+    mirror.kind = kr::MaterialKind::mirror;
+    scene.materials.push_back(mirror);
+    kr::Quad quad;
+    quad.corner = {-5, 0, -5}, quad.edge_u = {0, 0, 10}, quad.edge_v = {10, 0, 0};
+    scene.quads.push_back(quad);
+    kr::Renderer renderer;
+    std::string error;
+    REQUIRE(renderer.prepare(scene, 1, error));
+    const kr::Vec3 d = kr::normalize(kr::Vec3{1, -2, 0.5});
+    const std::vector<kr::PathEvent> path = renderer.trace_specular_path(kr::Vec3{-1, 4, -1}, d, 8);
+    REQUIRE(path.size() == 1);
+    CHECK(path[0].reflected);
+    CHECK(kr::length(path[0].point - kr::Vec3{1, 0, 0}) < 1e-12);
+    CHECK(kr::length(path[0].direction - kr::Vec3{d.x, -d.y, d.z}) < 1e-7);
+    scene.settings.enable_mirror = false;  // now a Phong surface: the path stops there
+    CHECK(renderer.trace_specular_path(kr::Vec3{-1, 4, -1}, d, 8).empty());
 }
