@@ -188,10 +188,12 @@ TEST_CASE("render: a ray through a glass sphere's centre passes undeviated", "[r
 
 TEST_CASE("render: a glass ball lens focuses paraxial rays at f = nD / (4 (n - 1))", "[render][glass]")
 {
-    // Heights h <= 1% of the radius. The exact (double) trace's focus lies short of the paraxial
-    // one by the spherical aberration, about (h/R)^2 times a factor of order 1: under 1e-4 of f
-    // here, so 0.5% is a bound with room, and the renderer's float optics add about 1e-5.
-    // At h = 0.5 R the aberration is many percent: the same check fails there, as it should.
+    // Heights h <= 1% of the radius R. The exact (double) trace's focus lies short of the
+    // paraxial one by the spherical aberration, (h/R)^2 times 0.28 f for n = 1.5 and 0.125 f for
+    // n = 2 at these heights: at most 2.8e-5 f. The renderer's float optics and ray offsets add
+    // up to about 1e-5 f. So the focus must lie within 1e-4 f of the paraxial one (the issue's
+    // 0.5% holds with a wide margin). At h = R / 2 the aberration is 7.2% and 3.0% of f: there
+    // the same check would fail, as it should.
     for (const double n : {1.5, 2.0}) {
         INFO("n = " << n);
         const kr::Scene scene = glass_ball(n);
@@ -208,11 +210,11 @@ TEST_CASE("render: a glass ball lens focuses paraxial rays at f = nD / (4 (n - 1
             REQUIRE(d.x < 0);  // bent towards the axis
             const double z = p.z - p.x / d.x * d.z;
             const double exact = exact_axis_crossing(h, n);
-            CHECK(std::fabs(z - exact) < 1e-4 * f);        // the renderer's path against the exact trace
-            CHECK(std::fabs(-z - f) < 0.005 * f);          // the paraxial focus, behind the ball (-z)
-            CHECK(std::fabs(-exact - f) < 1e-3 * f);
+            CHECK(std::fabs(z - exact) < 3e-5 * f);        // the renderer's path against the exact trace
+            CHECK(std::fabs(-z - f) < 1e-4 * f);           // the paraxial focus, behind the ball (-z)
+            CHECK(std::fabs(-exact - f) < 0.3 * (h * h) * f);  // the aberration as stated above
         }
-        CHECK(std::fabs(-exact_axis_crossing(0.5, n) - f) > 0.03 * f);  // the aberration is real
+        CHECK(std::fabs(-exact_axis_crossing(0.5, n) - f) > 0.02 * f);  // the aberration is real
     }
 }
 
