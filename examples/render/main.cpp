@@ -201,6 +201,16 @@ int run(int argc, char **argv)
         }
     }
 
+    // The reference is read and its size checked before the render, not after it.
+    kr::Image ref;
+    if (!reference.empty()) {
+        if (!kr::read_image(reference, ref, error)) return fail(error, 1);
+        kr::Image sized;
+        sized.width = options.width, sized.height = options.height;
+        double unused = 0;
+        if (!kr::image_rmse(sized, ref, unused, error)) return fail(error, 1);
+    }
+
     if (!kr::load_meshes(scene, error)) return fail(error, 1);
     if (!kr::load_textures(scene, error)) return fail(error, 1);
     std::string mesh_source;
@@ -246,9 +256,7 @@ int run(int argc, char **argv)
                  frame_count > 1 ? frame_path(out, 0).c_str() : out.c_str());
 
     if (!reference.empty()) {
-        kr::Image ref;
         double rmse = 0;
-        if (!kr::read_image(reference, ref, error)) return fail(error, 1);
         if (!kr::image_rmse(image, ref, rmse, error)) return fail(error, 1);
         std::printf("rmse=%.9g\n", rmse);
     }
