@@ -5,7 +5,6 @@
 // (kdrt_reflect, kdrt_refract, kdrt_fresnel_dielectric) and every secondary ray's origin, which
 // kdrt_spawn_ray (meshes) or kdrt_offset_ray_origin (spheres, quads: the same rule) moves off
 // the surface it leaves. No fixed epsilon anywhere.
-#define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
 #include "render.hpp"

@@ -2,6 +2,7 @@
 // it against the Scene model, naming the line of every mistake through the nodes' marks.
 #include "scene_file.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -165,7 +166,7 @@ bool Reader::read_list(const Fields &parent, const char *key, const std::string 
     const YAML::Node *list = parent.find(key);
     if (!list || list->IsNull()) return true;
     if (!list->IsSequence())
-        return fail(*list, std::string("'") + key + "' must be a list of " + item + "s, got " + describe(*list));
+        return fail(*list, std::string("'") + key + "' must be a list of " + item + " maps, got " + describe(*list));
     if (list->size() > kMaxListLength)
         return fail(*list, std::string("'") + key + "' has " + std::to_string(list->size()) + " entries, at most " +
                                std::to_string(kMaxListLength) + " are read");
@@ -293,7 +294,13 @@ bool Reader::read_settings(const Fields &top, Scene &scene)
         if (!s.value.IsScalar())
             return fail(s.value, "setting " + s.key + " must be a single value, got " + describe(s.value));
         std::string message;
-        if (!apply_setting(scene, s.key, s.value.Scalar(), message)) return fail(s.value, message);
+        if (!apply_setting(scene, s.key, s.value.Scalar(), message)) {
+            if (message.rfind("unknown setting", 0) == 0) {  // a typo: say what is there
+                std::vector<std::string> names = setting_names();
+                message += " (known: " + quoted_list(names) + ")";
+            }
+            return fail(s.value, message);
+        }
     }
     return true;
 }
@@ -465,6 +472,8 @@ bool Reader::read_scene(const YAML::Node &root, Scene &scene)
     if (!root.IsDefined() || root.IsNull())
         return fail_at(root.IsDefined() ? root.Mark().line : 0,
                        "the scene is empty: expected a map of sections (camera, materials, spheres, ...)");
+    if (!root.IsMap())
+        return fail(root, "a scene must be a map of sections (camera, materials, spheres, ...), got " + describe(root));
     Fields top;
     if (!read_map(root, "scene",
                   {"settings", "camera", "background", "textures", "materials", "spheres", "quads", "meshes", "lights"},
@@ -505,6 +514,9 @@ bool parse_scene_text(const std::string &text, const std::string &name_for_error
             scene = std::move(local);
             return true;
         }
+    } catch (const YAML::DeepRecursion &e) {  // its own message is a bare "bad file"
+        reader.fail_at(e.mark.line, "YAML nested more than " + std::to_string(e.depth() - 1) +
+                                        " levels deep: not a scene");
     } catch (const YAML::Exception &e) {
         reader.fail_at(e.mark.line, "YAML syntax error: " + e.msg);
     } catch (const std::exception &e) {  // bad_alloc and the like: still a clean refusal
@@ -519,7 +531,7 @@ bool load_scene_file(const std::string &path, Scene &scene, std::string &error)
     std::error_code ec;
     const fs::file_status status = fs::status(path, ec);
     if (ec || !fs::exists(status)) {
-        error = path + ": cannot read the scene file: " + (ec ? ec.message() : std::string("no such file"));
+        error = path + ": cannot read the scene file: " + (ec ? ec.message() : std::string("No such file or directory"));
         return false;
     }
     if (fs::is_directory(status)) {

@@ -1,50 +1,56 @@
 // kdrt-render's scene files: a user's own scene in YAML, read into the Scene model of scene.hpp.
 //
-// Format. One YAML document, a map of these sections, each optional but camera, and at least one
-// sphere, quad or mesh. Vectors are [x, y, z] of finite numbers (colours [r, g, b], each >= 0);
+// Format. One YAML document: a map of the sections below. camera is required, and at least one
+// sphere, quad or mesh; the other sections are optional, and `spheres:` with nothing after it is
+// an empty list. Vectors are [x, y, z] of finite numbers, colours [r, g, b] of numbers >= 0;
 // numbers are plain (unquoted) YAML numbers, never .nan or .inf. Unknown or repeated keys are
-// errors, so a typo is reported rather than ignored. Materials and textures are named and
-// referred to by name, in any order of sections.
+// errors, so a typo is reported rather than ignored. Textures and materials have names, and are
+// referred to by name from anywhere in the file. Keys marked (required) must be there; the others
+// default to the values in scene.hpp.
 //
-//   settings:    {NSAMPLES: 16, SHADOW_RAYS: 4, ...}   # the original's settings, as --set takes
-//                # them (kr::apply_setting); applied after the materials, so GLASS_IOR sets
-//                # every glass material's ior
+//   settings:    {NSAMPLES: 16, SHADOW_RAYS: 4, ...}   # the original's settings as --set takes
+//                # them (kr::apply_setting, names in any case); applied after the materials, so
+//                # GLASS_IOR sets the ior of every glass material
 //   camera:      {position: [0, 1, 4], target: [0, 1, 0], up: [0, 1, 0], fov: 40}
-//                # position and target required; up defaults to [0, 1, 0], not along the view;
-//                # fov: vertical degrees in (0, 180), default 45
-//   background:  [0, 0, 0]                 # colour of rays that leave the scene
-//   textures:                              # image files are read by the renderer; here they
-//     - {name: wood, file: wood.png}       # must exist and be readable, relative to this file
+//                # position, target (required, apart); up: not along the view, default [0, 1, 0];
+//                # fov: vertical, in degrees, in (0, 180), default 45
+//   background:  [0, 0, 0]                 # the colour of rays that leave the scene
+//   textures:                              # name (required) and one of file or checker
+//     - {name: wood, file: wood.png}       # an image, relative to this file; it must be readable
+//                                          # here, the renderer decodes it
 //     - {name: floor, checker: {a: [0.9, 0.9, 0.9], b: [0.1, 0.1, 0.1], scale: 8}}
-//                                          # a, b: colours; scale > 0 squares per unit of (u, v)
-//   materials:
+//                                          # a, b: colours; scale > 0: squares per unit of (u, v)
+//   materials:                             # name (required)
 //     - {name: white, type: phong, ambient: [.05, .05, .05], diffuse: [.8, .8, .8],
 //        specular: [.2, .2, .2], shininess: 32, texture: floor}    # texture multiplies diffuse
 //     - {name: chrome, type: mirror, tint: [0.9, 0.9, 0.9]}
 //     - {name: glass, type: glass, ior: 1.5, tint: [1, 1, 1]}
 //                # type: phong (default), mirror or glass. Every type takes the Phong keys (used
-//                # when ENABLE_MIRROR or ENABLE_GLASS is off); tint (colour, each in [0, 1]) only
-//                # mirror and glass; ior (0.001 to 100) only glass; shininess >= 0
-//   spheres:     [{center: [0, 1, 0], radius: 0.5, material: glass}]    # radius > 0
+//                # when ENABLE_MIRROR or ENABLE_GLASS is off); shininess >= 0; tint (a colour in
+//                # [0, 1]) only mirror and glass; ior (0.001 to 100) only glass
+//   spheres:     [{center: [0, 1, 0], radius: 0.5, material: glass}]   # all required, radius > 0
 //   quads:       [{corner: [-1, 0, -1], edge_u: [0, 0, 2], edge_v: [2, 0, 0], material: white}]
-//                # corner + s edge_u + t edge_v; edges neither zero nor parallel
-//   meshes:
+//                # all required: corner + s edge_u + t edge_v, edges neither zero nor parallel
+//   meshes:                                # material and one of file or generated (required)
 //     - {file: bunny.ply, position: [0, 0, 0], size: 1, rotate_y: 30, material: white}
 //     - {generated: torus, position: [0, 0.2, 0], size: 0.8, material: white}
-//                # file (anything Assimp reads, relative to this file, loaded by the renderer) or
-//                # generated: torus; scaled so its largest side is size (> 0, default 1), turned
-//                # rotate_y degrees (default 0), bottom centre at position (default [0, 0, 0])
-//   lights:
-//     - {type: sphere, center: [0, 1.9, 0], radius: 0.1, color: [1, 1, 1]}   # radius > 0, 0.1
+//                # file: anything Assimp reads, relative to this file, readable (the renderer
+//                # loads it); generated: torus, 9,216 triangles. Scaled so its largest side is
+//                # size (> 0, default 1), turned rotate_y degrees about +y (default 0), its
+//                # bounding box's bottom centre at position (default [0, 0, 0])
+//   lights:                                # type (required): sphere or quad
+//     - {type: sphere, center: [0, 1.9, 0], radius: 0.1, color: [1, 1, 1]}
+//                # center (required), radius > 0 (default 0.1)
 //     - {type: quad, corner: [-.2, 1.99, -.2], edge_u: [.4, 0, 0], edge_v: [0, 0, .4], color: [1, 1, 1]}
-//                # color: radiance, default [1, 1, 1]
+//                # corner, edge_u, edge_v (required) as for quads; color: default [1, 1, 1]
 //
-// Limits: a file of at most 64 MB, at most 65536 entries in each list.
+// Limits: a file of at most 64 MB, at most 65536 entries in each list, YAML nested at most 499
+// deep (yaml-cpp's guard).
 //
-// Errors. false, `scene` untouched, and `error` one line naming the file, the 1-based line and what
-// was expected, e.g.  scenes/box.yaml:12: sphere 'radius' must be a number > 0, got "big"
-// YAML syntax errors carry yaml-cpp's line and message; a file that cannot be read is named with
-// the system's reason.
+// Errors: false, `scene` untouched, and `error` one line naming the file, the 1-based line and
+// what was expected, e.g.  scenes/box.yaml:12: sphere 'radius' must be a number > 0, got "big"
+// YAML syntax errors carry yaml-cpp's line and message; a scene file that cannot be read is
+// named with the system's reason (no line).
 #pragma once
 
 #include "scene.hpp"
