@@ -127,7 +127,8 @@ struct Renderer::Impl {
     uint32_t sphere_object(int i) const { return uint32_t(i); }
     uint32_t mesh_object(int i) const { return uint32_t(scene->spheres.size() + size_t(i)); }
 
-    bool intersect(const Ray &ray, bool with_lights, Hit &hit) const;
+    // The nearest sphere, quad, mesh or light the ray meets (lights are seen by every traced ray).
+    bool intersect(const Ray &ray, Hit &hit) const;
     bool occluded(Vec3 origin, Vec3 target) const;
     Ray spawn(const Hit &hit, Vec3 dir) const;
     Vec3 texture(int texture_index, double u, double v) const;
@@ -157,7 +158,7 @@ struct Renderer::Impl {
     }
 };
 
-bool Renderer::Impl::intersect(const Ray &ray, bool with_lights, Hit &hit) const
+bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
 {
     hit = Hit();
     const Scene &sc = *scene;
@@ -171,13 +172,12 @@ bool Renderer::Impl::intersect(const Ray &ray, bool with_lights, Hit &hit) const
         const double t = hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, hit.t, s, tt);
         if (t < hit.t) hit.t = t, hit.kind = HitKind::quad, hit.index = int(i), hit.u = s, hit.v = tt;
     }
-    if (with_lights)
-        for (size_t i = 0; i < sc.lights.size(); ++i) {
-            const Light &l = sc.lights[i];
-            const double t = l.kind == LightKind::sphere ? hit_sphere(l.center, l.radius, ray, hit.t)
-                                                         : hit_parallelogram(l.corner, l.edge_u, l.edge_v, ray, hit.t, s, tt);
-            if (t < hit.t) hit.t = t, hit.kind = HitKind::light, hit.index = int(i);
-        }
+    for (size_t i = 0; i < sc.lights.size(); ++i) {
+        const Light &l = sc.lights[i];
+        const double t = l.kind == LightKind::sphere ? hit_sphere(l.center, l.radius, ray, hit.t)
+                                                     : hit_parallelogram(l.corner, l.edge_u, l.edge_v, ray, hit.t, s, tt);
+        if (t < hit.t) hit.t = t, hit.kind = HitKind::light, hit.index = int(i);
+    }
     kdrt_ray kray;
     to_float(ray.origin, kray.org);
     to_float(ray.dir, kray.dir);
@@ -393,7 +393,7 @@ Vec3 Renderer::Impl::radiance(const Ray &ray, uint32_t bounces_left, const kdrt_
 {
     const Scene &sc = *scene;
     Hit hit;
-    if (!intersect(ray, true, hit)) return sc.background;
+    if (!intersect(ray, hit)) return sc.background;
     if (hit.kind == HitKind::light) return sc.lights[size_t(hit.index)].color;
     const Material *m = nullptr;
     material_of(hit, m);
@@ -500,7 +500,7 @@ std::vector<PathEvent> Renderer::trace_specular_path(Vec3 origin, Vec3 direction
     Ray ray{origin, normalize(direction)};
     for (uint32_t i = 0; i < max_events; ++i) {
         Hit hit;
-        if (!im.intersect(ray, true, hit) || hit.kind == HitKind::light) break;
+        if (!im.intersect(ray, hit) || hit.kind == HitKind::light) break;
         const Material *m = nullptr;
         im.material_of(hit, m);
         if (!m) break;
