@@ -16,6 +16,10 @@
 #include <thread>
 #include <vector>
 
+#ifndef KDRT_MESH_DIR
+#define KDRT_MESH_DIR "../shared/meshes"
+#endif
+
 namespace {
 
 const char *const kUsage =
@@ -45,6 +49,10 @@ const char *const kUsage =
     "  -o OUT              output file, .png or .exr (required)\n"
     "  --list-presets      the presets, one a line, in the original's order\n"
     "  --help              this text\n"
+    "\n"
+    "Meshes named by the presets and by MESH=NAME are DIR/common/NAME.obj, else DIR/seed/NAME.off,\n"
+    "with DIR = " KDRT_MESH_DIR ";\n"
+    "without that folder the presets use a generated torus.\n"
     "\n"
     "Exit status: 0 success, 1 failure (unreadable mesh or scene, unwritable output), 2 a bad\n"
     "command line.\n";

@@ -547,9 +547,17 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
 
     const Camera &cam = sc.camera;
     const Vec3 forward = normalize(cam.target - cam.position);
-    Vec3 right = normalize(cross(forward, cam.up));
+    const Vec3 right = normalize(cross(forward, cam.up));
+    if (!(dot(forward, forward) > 0)) {
+        error = "the camera's target is its position: it looks nowhere";
+        return false;
+    }
     if (!(dot(right, right) > 0)) {
-        error = "the camera's up vector is parallel to its view direction (or zero)";
+        error = "the camera's up vector is zero or along its view direction";
+        return false;
+    }
+    if (!(cam.fov_degrees > 0 && cam.fov_degrees < 180)) {
+        error = "the camera's field of view must lie between 0 and 180 degrees";
         return false;
     }
     const Vec3 up = cross(right, forward);
