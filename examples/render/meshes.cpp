@@ -26,11 +26,11 @@ bool is_dir(const std::string &path)
     return !path.empty() && stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
 }
 
-// A mesh named without a folder or extension is looked up in the mesh folder: common/NAME.obj,
-// then seed/NAME.off. Anything else is a path.
+// A mesh named without a folder or extension, and not a file of that name, is looked up in the
+// mesh folder: common/NAME.obj, then seed/NAME.off. Anything else is a path.
 bool is_bare_name(const std::string &file)
 {
-    return file.find('/') == std::string::npos && file.find('.') == std::string::npos;
+    return file.find('/') == std::string::npos && file.find('.') == std::string::npos && !is_file(file);
 }
 
 // Scale so the box's largest side is `size`, turn about +y, put the box's bottom centre at
