@@ -12,6 +12,7 @@ PACKAGES=(
   libassimp-dev   # mesh loading in the tests and examples
   libstb-dev      # stb_image_write for the example's PNG output
   libyaml-cpp-dev # kdrt-render's scene files (YAML, with line numbers for errors)
+  libopenexr-dev  # kdrt-render's OpenEXR output and --reference input (linear half or float)
   libembree-dev   # Embree 3: only kdrt-bench's --compare embree, the peer speed is stated against
   python3-matplotlib  # tools/plot_bench.py
 )

@@ -1,0 +1,229 @@
+// Image files: OpenEXR (linear, half or float) and PNG (sRGB, clamped), written atomically:
+// a temporary file beside the output, renamed over it only once complete.
+#include "render.hpp"
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImathBox.h>
+#include <half.h>
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include <unistd.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+
+namespace kr {
+namespace {
+
+std::string lower_extension(const std::string &path)
+{
+    const size_t slash = path.find_last_of('/');
+    const size_t dot = path.find_last_of('.');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+    std::string ext = path.substr(dot);
+    for (char &c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+// A name beside path that no other writer in this process or another uses at the same time.
+std::string temporary_name(const std::string &path)
+{
+    static std::atomic<unsigned> counter(0);
+    return path + ".tmp-" + std::to_string(long(getpid())) + "-" + std::to_string(counter++);
+}
+
+unsigned char linear_to_srgb8(float v)
+{
+    const double c = std::min(1.0, std::max(0.0, double(v)));  // clamp: no tone curve beyond it
+    const double s = c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1 / 2.4) - 0.055;
+    return (unsigned char)std::lround(255.0 * s);
+}
+
+float srgb8_to_linear(unsigned char v)
+{
+    const double c = v / 255.0;
+    return float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+}
+
+struct Sink {
+    FILE *file;
+    bool ok;
+};
+void write_to_sink(void *context, void *data, int size)
+{
+    Sink *sink = static_cast<Sink *>(context);
+    if (sink->ok && std::fwrite(data, 1, size_t(size), sink->file) != size_t(size)) sink->ok = false;
+}
+
+bool write_png(const std::string &tmp, const Image &image, std::string &error)
+{
+    std::vector<unsigned char> rgb(image.rgb.size());
+    for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = linear_to_srgb8(image.rgb[i]);
+    Sink sink = {std::fopen(tmp.c_str(), "wb"), true};
+    if (!sink.file) {
+        error = "cannot create " + tmp + ": " + std::strerror(errno);
+        return false;
+    }
+    const int encoded = stbi_write_png_to_func(write_to_sink, &sink, int(image.width), int(image.height), 3,
+                                               rgb.data(), int(image.width) * 3);
+    const int write_errno = errno;
+    const bool closed = std::fclose(sink.file) == 0;
+    if (!encoded || !sink.ok || !closed) {
+        error = encoded ? "cannot write " + tmp + ": " + std::strerror(write_errno) : std::string("cannot encode the PNG");
+        return false;
+    }
+    return true;
+}
+
+bool write_exr(const std::string &tmp, const Image &image, bool exr_float, std::string &error)
+{
+    try {
+        Imf::Header header(int(image.width), int(image.height));
+        const Imf::PixelType type = exr_float ? Imf::FLOAT : Imf::HALF;
+        for (const char *c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(type));
+        Imf::FrameBuffer frame;
+        // OpenEXR converts pixel types when reading, not when writing: half channels get halves.
+        std::vector<half> halves;
+        char *base = reinterpret_cast<char *>(const_cast<float *>(image.rgb.data()));
+        size_t component = sizeof(float);
+        if (!exr_float) {
+            halves.assign(image.rgb.begin(), image.rgb.end());  // rounded to nearest
+            base = reinterpret_cast<char *>(halves.data());
+            component = sizeof(half);
+        }
+        const size_t xs = 3 * component, ys = xs * image.width;
+        frame.insert("R", Imf::Slice(type, base, xs, ys));
+        frame.insert("G", Imf::Slice(type, base + component, xs, ys));
+        frame.insert("B", Imf::Slice(type, base + 2 * component, xs, ys));
+        Imf::OutputFile file(tmp.c_str(), header);
+        file.setFrameBuffer(frame);
+        file.writePixels(int(image.height));
+    } catch (const std::exception &e) {
+        error = "cannot write " + tmp + ": " + e.what();
+        return false;
+    }
+    return true;
+}
+
+bool read_exr(const std::string &path, Image &image, std::string &error)
+{
+    try {
+        Imf::InputFile file(path.c_str());
+        const Imath::Box2i dw = file.header().dataWindow();
+        const long w = long(dw.max.x) - dw.min.x + 1, h = long(dw.max.y) - dw.min.y + 1;
+        if (w <= 0 || h <= 0 || w > 65536 || h > 65536) {
+            error = path + ": unusable data window";
+            return false;
+        }
+        image.width = uint32_t(w), image.height = uint32_t(h);
+        image.rgb.assign(size_t(w) * size_t(h) * 3, 0.0f);
+        Imf::FrameBuffer frame;
+        const size_t xs = 3 * sizeof(float), ys = xs * size_t(w);
+        // The slice's origin is pixel (0, 0) of the file's coordinates, which may lie outside.
+        char *base = reinterpret_cast<char *>(image.rgb.data()) - (long(dw.min.x) * long(xs) + long(dw.min.y) * long(ys));
+        const char *names[3] = {"R", "G", "B"};
+        for (int c = 0; c < 3; ++c) {
+            if (!file.header().channels().findChannel(names[c])) {
+                error = path + ": no " + names[c] + " channel";
+                return false;
+            }
+            frame.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), xs, ys));
+        }
+        file.setFrameBuffer(frame);
+        file.readPixels(dw.min.y, dw.max.y);
+    } catch (const std::exception &e) {
+        error = "cannot read " + path + ": " + e.what();
+        return false;
+    }
+    return true;
+}
+
+bool read_png(const std::string &path, Image &image, std::string &error)
+{
+    int w = 0, h = 0, channels = 0;
+    unsigned char *pixels = stbi_load(path.c_str(), &w, &h, &channels, 3);
+    if (!pixels) {
+        error = "cannot read " + path + ": " + (stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
+        return false;
+    }
+    image.width = uint32_t(w), image.height = uint32_t(h);
+    image.rgb.resize(size_t(w) * size_t(h) * 3);
+    for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = srgb8_to_linear(pixels[i]);
+    stbi_image_free(pixels);
+    return true;
+}
+
+}  // namespace
+
+bool check_image_extension(const std::string &path, std::string &error)
+{
+    const std::string ext = lower_extension(path);
+    if (ext == ".png" || ext == ".exr") return true;
+    error = "cannot write '" + path + "': the extension must be .png or .exr";
+    return false;
+}
+
+bool write_image(const std::string &path, const Image &image, bool exr_float, std::string &error)
+{
+    if (!check_image_extension(path, error)) return false;
+    if (image.width == 0 || image.height == 0 || image.rgb.size() != size_t(image.width) * image.height * 3) {
+        error = "cannot write '" + path + "': the image is empty or inconsistent";
+        return false;
+    }
+    struct stat target;
+    if (stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode)) {
+        error = "cannot write '" + path + "': it exists and is not a regular file";
+        return false;
+    }
+    const std::string tmp = temporary_name(path);
+    const bool written = lower_extension(path) == ".png" ? write_png(tmp, image, error) : write_exr(tmp, image, exr_float, error);
+    if (!written) {
+        std::remove(tmp.c_str());
+        return false;
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        error = "cannot rename " + tmp + " to " + path + ": " + std::strerror(errno);
+        std::remove(tmp.c_str());
+        return false;
+    }
+    return true;
+}
+
+bool read_image(const std::string &path, Image &image, std::string &error)
+{
+    const std::string ext = lower_extension(path);
+    if (ext == ".exr") return read_exr(path, image, error);
+    if (ext == ".png") return read_png(path, image, error);
+    error = "cannot read '" + path + "': the extension must be .png or .exr";
+    return false;
+}
+
+bool image_rmse(const Image &a, const Image &b, double &rmse, std::string &error)
+{
+    if (a.width != b.width || a.height != b.height) {
+        error = "the reference is " + std::to_string(b.width) + "x" + std::to_string(b.height) + ", the image " +
+                std::to_string(a.width) + "x" + std::to_string(a.height) + ": sizes must match";
+        return false;
+    }
+    double sum = 0;
+    for (size_t i = 0; i < a.rgb.size(); ++i) {
+        const double d = double(a.rgb[i]) - double(b.rgb[i]);
+        sum += d * d;
+    }
+    rmse = a.rgb.empty() ? 0 : std::sqrt(sum / double(a.rgb.size()));
+    return true;
+}
+
+}  // namespace kr

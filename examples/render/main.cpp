@@ -1,0 +1,287 @@
+// kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
+// Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
+#include "render.hpp"
+#include "scene_file.hpp"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <new>
+#include <string>
+#include <thread>
+#include <vector>
+
+#ifndef KDRT_MESH_DIR
+#define KDRT_MESH_DIR "../shared/meshes"
+#endif
+
+namespace {
+
+const char *const kUsage =
+    "usage: kdrt-render [--preset NAME | --scene FILE] [--set KEY=VALUE]... [--size WxH]\n"
+    "                   [--threads N] [--seed N] [--animate KEY=FROM:TO --frames N]\n"
+    "                   [--reference REF.exr] [--exr-float] -o OUT.png|OUT.exr\n"
+    "       kdrt-render --list-presets | --help\n"
+    "\n"
+    "Renders a preset of the original ray tracer (default PICTURE) or a YAML scene file, and\n"
+    "writes a PNG (sRGB, clamped) or an OpenEXR file (linear, half floats), by OUT's extension.\n"
+    "\n"
+    "  --preset NAME       one of --list-presets (case-insensitive)\n"
+    "  --scene FILE        a YAML scene file (format: examples/render/scene_file.hpp)\n"
+    "  --set KEY=VALUE     a setting, after the preset's or the file's own (repeatable):\n"
+    "                      NSAMPLES, MAX_BOUNCES, SHADOW_RAYS, PHONG, ENABLE_MIRROR, ENABLE_GLASS,\n"
+    "                      AIR_INDEX_MEDIUM, MESH, ENABLE_INTERPOLATION, MAX_LEAF_SIZE,\n"
+    "                      ENABLE_TEXTURES, FRESNEL, GLASS_IOR\n"
+    "  --size WxH          image size (default 800x600; sides 1..16384, at most 64 Mpixels)\n"
+    "  --threads N         render and build threads (default: every core); the image is the same\n"
+    "  --seed N            seed of the per-pixel random streams (default 0)\n"
+    "  --animate KEY=FROM:TO --frames N\n"
+    "                      N frames, frame i with KEY = FROM + (TO - FROM) i / (N - 1), written\n"
+    "                      to OUT with -0000, -0001, ... before the extension\n"
+    "  --reference REF     after writing OUT, print rmse=<value> (linear RGB, every pixel and\n"
+    "                      channel) against REF (.exr or .png, the same size) on stdout\n"
+    "  --exr-float         32-bit float EXR channels instead of half\n"
+    "  -o OUT              output file, .png or .exr (required)\n"
+    "  --list-presets      the presets, one a line, in the original's order\n"
+    "  --help              this text\n"
+    "\n"
+    "Meshes named by the presets and by MESH=NAME are DIR/common/NAME.obj, else DIR/seed/NAME.off,\n"
+    "with DIR = " KDRT_MESH_DIR ";\n"
+    "without that folder the presets use a generated torus.\n"
+    "\n"
+    "Exit status: 0 success, 1 failure (unreadable mesh or scene, unwritable output), 2 a bad\n"
+    "command line.\n";
+
+struct UsageError {
+    std::string message;
+};
+
+int fail(const std::string &message, int code)
+{
+    std::fprintf(stderr, "kdrt-render: %s\n", message.c_str());
+    return code;
+}
+
+bool parse_u64(const std::string &text, uint64_t max, uint64_t &out)
+{
+    if (text.empty() || text[0] < '0' || text[0] > '9') return false;
+    errno = 0;
+    char *end = nullptr;
+    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
+    if (errno != 0 || *end != '\0' || v > max) return false;
+    out = v;
+    return true;
+}
+
+bool parse_double(const std::string &text, double &out)
+{
+    errno = 0;
+    char *end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || errno != 0 || *end != '\0' || !std::isfinite(v)) return false;
+    out = v;
+    return true;
+}
+
+bool parse_size(const std::string &text, uint32_t &width, uint32_t &height)
+{
+    const size_t x = text.find('x');
+    uint64_t w = 0, h = 0;
+    if (x == std::string::npos || !parse_u64(text.substr(0, x), 16384, w) || !parse_u64(text.substr(x + 1), 16384, h) ||
+        w == 0 || h == 0 || w * h > (uint64_t(1) << 26))
+        return false;
+    width = uint32_t(w), height = uint32_t(h);
+    return true;
+}
+
+// anim.png -> anim-0007.png
+std::string frame_path(const std::string &path, uint32_t frame)
+{
+    const size_t dot = path.find_last_of('.');
+    char number[16];
+    std::snprintf(number, sizeof number, "-%04u", frame);
+    return path.substr(0, dot) + number + path.substr(dot);
+}
+
+std::string format_value(double v)
+{
+    char text[40];
+    std::snprintf(text, sizeof text, "%.17g", v);
+    return text;
+}
+
+int run(int argc, char **argv)
+{
+    std::string preset, scene_file, out, reference, animate;
+    std::vector<std::string> sets;
+    kr::RenderOptions options;
+    uint64_t frames = 0;
+    bool exr_float = false, have_frames = false;
+
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        auto value = [&]() -> std::string {
+            if (i + 1 >= argc) throw UsageError{arg + " needs a value (see --help)"};
+            return argv[++i];
+        };
+        if (arg == "--help" || arg == "-h") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        } else if (arg == "--list-presets") {
+            for (const std::string &p : kr::preset_names()) std::printf("%s\n", p.c_str());
+            return 0;
+        } else if (arg == "--preset") {
+            preset = value();
+        } else if (arg == "--scene") {
+            scene_file = value();
+        } else if (arg == "--set") {
+            sets.push_back(value());
+        } else if (arg == "--size") {
+            const std::string v = value();
+            if (!parse_size(v, options.width, options.height))
+                throw UsageError{"bad --size '" + v + "': expected WxH, each side 1..16384, at most 64 Mpixels"};
+        } else if (arg == "--threads") {
+            const std::string v = value();
+            uint64_t n = 0;
+            if (!parse_u64(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
+            options.threads = unsigned(n);
+        } else if (arg == "--seed") {
+            const std::string v = value();
+            if (!parse_u64(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
+        } else if (arg == "--animate") {
+            animate = value();
+        } else if (arg == "--frames") {
+            const std::string v = value();
+            if (!parse_u64(v, 100000, frames) || frames == 0) throw UsageError{"bad --frames '" + v + "': expected 1..100000"};
+            have_frames = true;
+        } else if (arg == "--reference") {
+            reference = value();
+        } else if (arg == "--exr-float") {
+            exr_float = true;
+        } else if (arg == "-o") {
+            out = value();
+        } else {
+            throw UsageError{"unknown argument '" + arg + "' (see --help)"};
+        }
+    }
+    if (out.empty()) throw UsageError{"no output file: give -o OUT.png or -o OUT.exr"};
+    std::string error;
+    if (!kr::check_image_extension(out, error)) throw UsageError{error};
+    if (!preset.empty() && !scene_file.empty()) throw UsageError{"give --preset or --scene, not both"};
+    if (animate.empty() != !have_frames) throw UsageError{"--animate and --frames go together"};
+    if (!animate.empty() && !reference.empty()) throw UsageError{"--reference compares one image: not with --animate"};
+
+    // The scene, then the settings on top.
+    kr::Scene scene;
+    if (!scene_file.empty()) {
+        if (!kr::load_scene_file(scene_file, scene, error)) return fail(error, 1);
+    } else if (!kr::make_preset(preset.empty() ? "PICTURE" : preset, scene, error)) {
+        throw UsageError{error};
+    }
+    for (const std::string &s : sets) {
+        const size_t eq = s.find('=');
+        if (eq == std::string::npos || eq == 0) throw UsageError{"bad --set '" + s + "': expected KEY=VALUE"};
+        if (!kr::apply_setting(scene, s.substr(0, eq), s.substr(eq + 1), error)) throw UsageError{"--set: " + error};
+    }
+
+    // The animation's values, each checked before anything is rendered.
+    std::string animate_key;
+    std::vector<std::string> frame_values;
+    if (!animate.empty()) {
+        const size_t eq = animate.find('='), colon = animate.find(':', eq == std::string::npos ? 0 : eq);
+        double from = 0, to = 0;
+        if (eq == std::string::npos || eq == 0 || colon == std::string::npos ||
+            !parse_double(animate.substr(eq + 1, colon - eq - 1), from) || !parse_double(animate.substr(colon + 1), to))
+            throw UsageError{"bad --animate '" + animate + "': expected KEY=FROM:TO with numbers FROM and TO"};
+        animate_key = animate.substr(0, eq);
+        for (uint64_t f = 0; f < frames; ++f) {
+            const double v = frames == 1 ? from : from + (to - from) * double(f) / double(frames - 1);
+            frame_values.push_back(format_value(v));
+            kr::Scene probe = scene;
+            if (!kr::apply_setting(probe, animate_key, frame_values.back(), error))
+                throw UsageError{"--animate frame " + std::to_string(f) + ": " + error};
+            if (probe.settings.mesh != scene.settings.mesh) throw UsageError{"--animate: MESH is not a number"};
+        }
+    }
+
+    // The reference is read and its size checked before the render, not after it.
+    kr::Image ref;
+    if (!reference.empty()) {
+        if (!kr::read_image(reference, ref, error)) return fail(error, 1);
+        kr::Image sized;
+        sized.width = options.width, sized.height = options.height;
+        double unused = 0;
+        if (!kr::image_rmse(sized, ref, unused, error)) return fail(error, 1);
+    }
+
+    if (!kr::load_meshes(scene, error)) return fail(error, 1);
+    if (!kr::load_textures(scene, error)) return fail(error, 1);
+    std::string mesh_source;
+    for (const kr::MeshInstance &m : scene.meshes) mesh_source += (mesh_source.empty() ? "" : ", ") + m.source;
+    if (!scene.meshes.empty()) std::fprintf(stderr, "kdrt-render: meshes: %s\n", mesh_source.c_str());
+
+    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    options.threads = threads;
+    options.progress = isatty(STDERR_FILENO) != 0;
+    kr::Renderer renderer;
+    if (!renderer.prepare(scene, threads, error)) return fail(error, 1);
+    double build_seconds = renderer.build_seconds(), render_seconds = 0;
+    uint32_t built_leaf_size = scene.settings.max_leaf_size;
+
+    const uint32_t frame_count = frame_values.empty() ? 1 : uint32_t(frame_values.size());
+    kr::Image image;
+    for (uint32_t f = 0; f < frame_count; ++f) {
+        std::string path = out;
+        if (!frame_values.empty()) {
+            if (!kr::apply_setting(scene, animate_key, frame_values[f], error)) return fail(error, 1);
+            if (scene.settings.max_leaf_size != built_leaf_size) {  // a new tree for a new leaf size
+                if (!renderer.prepare(scene, threads, error)) return fail(error, 1);
+                build_seconds += renderer.build_seconds();
+                built_leaf_size = scene.settings.max_leaf_size;
+            }
+            path = frame_path(out, f);
+            options.frame = f;
+        }
+        const auto start = std::chrono::steady_clock::now();
+        if (!renderer.render(options, image, error)) return fail(error, 1);
+        render_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (!kr::write_image(path, image, exr_float, error)) return fail(error, 1);
+        if (!frame_values.empty() && options.progress)
+            std::fprintf(stderr, "kdrt-render: frame %u/%u, %s=%s: %s\n", f + 1, frame_count, animate_key.c_str(),
+                         frame_values[f].c_str(), path.c_str());
+    }
+
+    std::fprintf(stderr,
+                 "kdrt-render: %s, %ux%u, %u spp, %u threads, meshes: %s, tree build %.3f s, render %.3f s%s -> %s\n",
+                 scene.name.c_str(), options.width, options.height, scene.settings.nsamples, threads,
+                 scene.meshes.empty() ? "none" : mesh_source.c_str(), build_seconds, render_seconds,
+                 frame_count > 1 ? (" (" + std::to_string(frame_count) + " frames)").c_str() : "",
+                 frame_count > 1 ? frame_path(out, 0).c_str() : out.c_str());
+
+    if (!reference.empty()) {
+        double rmse = 0;
+        if (!kr::image_rmse(image, ref, rmse, error)) return fail(error, 1);
+        std::printf("rmse=%.9g\n", rmse);
+    }
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    try {
+        return run(argc, argv);
+    } catch (const UsageError &e) {
+        return fail(e.message, 2);
+    } catch (const std::bad_alloc &) {
+        return fail("out of memory", 1);
+    } catch (const std::exception &e) {
+        return fail(e.what(), 1);
+    }
+}

@@ -1,0 +1,637 @@
+// kdrt-render's tracer: a pinhole camera, Phong direct lighting with hard or soft shadows,
+// mirrors, glass through kdrt's nested-media stack, one kdrt tree per mesh, tiles on threads.
+//
+// Geometry is double precision except where kdrt works in floats: mesh hits, the optics functions
+// (kdrt_reflect, kdrt_refract, kdrt_fresnel_dielectric) and every secondary ray's origin, which
+// kdrt_spawn_ray (meshes) or kdrt_offset_ray_origin (spheres, quads: the same rule) moves off
+// the surface it leaves. No fixed epsilon anywhere.
+#include "kdrt.h"
+
+#include "render.hpp"
+#include "thread_scheduler.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <mutex>
+#include <system_error>
+#include <thread>
+
+namespace kr {
+namespace {
+
+const double kPi = 3.14159265358979323846;
+const double kInf = std::numeric_limits<double>::infinity();
+
+// Per-pixel random numbers: PCG32 (O'Neill 2014) seeded by a splitmix64 hash of (seed, frame,
+// pixel index), so a pixel's samples do not depend on which thread renders it or when.
+uint64_t splitmix64(uint64_t x)
+{
+    x += 0x9E3779B97F4A7C15ull;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+}
+
+struct Rng {
+    uint64_t state;
+    Rng(uint64_t seed, uint64_t frame, uint64_t pixel) : state(splitmix64(seed ^ splitmix64(frame ^ splitmix64(pixel)))) {}
+    uint32_t next()
+    {
+        const uint64_t old = state;
+        state = old * 6364136223846793005ull + 1442695040888963407ull;
+        const uint32_t xorshifted = uint32_t(((old >> 18u) ^ old) >> 27u);
+        const uint32_t rot = uint32_t(old >> 59u);
+        return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
+    }
+    double uniform() { return next() * (1.0 / 4294967296.0); }  // [0, 1)
+};
+
+struct Ray {
+    Vec3 origin, dir;  // dir unit length
+};
+
+enum class HitKind { none, sphere, quad, mesh, light };
+
+struct Hit {
+    HitKind kind = HitKind::none;
+    double t = kInf;
+    int index = -1;          // sphere, quad, mesh or light index
+    kdrt_hit mesh_hit{};     // meshes
+    Vec3 point;              // on the surface
+    Vec3 normal;             // geometric, unit, as the object defines it (outwards for spheres)
+    Vec3 shading_normal;     // interpolated on meshes when enabled, else the geometric one
+    double u = 0, v = 0;     // texture coordinates
+};
+
+Vec3 to_vec(const float f[3]) { return {f[0], f[1], f[2]}; }
+void to_float(Vec3 v, float f[3]) { f[0] = float(v.x), f[1] = float(v.y), f[2] = float(v.z); }
+
+// Nearest root t > 0 of |o + t d - c| = r (d unit), in the stable form.
+double hit_sphere(Vec3 center, double radius, const Ray &ray, double tmax)
+{
+    const Vec3 oc = ray.origin - center;
+    const double b = dot(oc, ray.dir), c = dot(oc, oc) - radius * radius;
+    const double disc = b * b - c;
+    if (!(disc >= 0)) return kInf;
+    const double q = -b - std::copysign(std::sqrt(disc), b);  // the larger-magnitude root times 1
+    double t0 = q, t1 = q != 0 ? c / q : 0;                  // t0 t1 = c
+    if (t0 > t1) std::swap(t0, t1);
+    if (t0 > 0 && t0 < tmax) return t0;
+    if (t1 > 0 && t1 < tmax) return t1;
+    return kInf;
+}
+
+// t > 0 where the ray meets the parallelogram, with its (s, t) coordinates.
+double hit_parallelogram(Vec3 corner, Vec3 eu, Vec3 ev, const Ray &ray, double tmax, double &s, double &tt)
+{
+    const Vec3 n = cross(eu, ev);
+    const double denom = dot(ray.dir, n);
+    if (denom == 0) return kInf;
+    const double t = dot(corner - ray.origin, n) / denom;
+    if (!(t > 0 && t < tmax)) return kInf;
+    const Vec3 w = ray.origin + t * ray.dir - corner;
+    const double nn = dot(n, n);
+    s = dot(cross(w, ev), n) / nn;
+    tt = dot(cross(eu, w), n) / nn;
+    if (!(s >= 0 && s <= 1 && tt >= 0 && tt <= 1)) return kInf;
+    return t;
+}
+
+struct MeshData {
+    kdrt_tree *tree = nullptr;
+    std::vector<Vec3> vertex_normals;  // area-weighted sums of face normals, unit
+    Vec3 box_lo, box_hi;               // for textured meshes' (u, v)
+};
+
+}  // namespace
+
+struct Renderer::Impl {
+    const Scene *scene = nullptr;
+    std::vector<MeshData> meshes;
+    double build_seconds = 0;
+
+    ~Impl() { clear(); }
+    void clear()
+    {
+        for (MeshData &m : meshes) kdrt_tree_free(m.tree);
+        meshes.clear();
+    }
+
+    // Media-stack ids: spheres first, then meshes (quads are thin panes, see glass()).
+    uint32_t sphere_object(int i) const { return uint32_t(i); }
+    uint32_t mesh_object(int i) const { return uint32_t(scene->spheres.size() + size_t(i)); }
+
+    // The nearest sphere, quad, mesh or light the ray meets (lights are seen by every traced ray).
+    bool intersect(const Ray &ray, Hit &hit) const;
+    bool occluded(Vec3 origin, Vec3 target) const;
+    Ray spawn(const Hit &hit, Vec3 dir) const;
+    Vec3 texture(int texture_index, double u, double v) const;
+    Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, Rng &rng) const;
+    Vec3 radiance(const Ray &ray, uint32_t bounces_left, const kdrt_media_stack &media, Rng &rng) const;
+
+    // One glass surface: where the ray goes next, and how the stack changes. Shared by the
+    // shading and trace_specular_path. `reflect` forces the reflected branch (FRESNEL).
+    struct GlassStep {
+        bool ok = false;          // false: the stack overflowed or the input was bad; end the path
+        bool refracted = false;   // crossed into the next medium (or through a false surface)
+        bool total_internal = false;
+        Ray next;
+        kdrt_media_stack media;
+        double reflectance = 0;   // Fresnel reflectance of a real surface (0 for false ones)
+    };
+    GlassStep glass(const Ray &ray, const Hit &hit, const Material &m, const kdrt_media_stack &media,
+                    bool reflect) const;
+
+    void material_of(const Hit &hit, const Material *&m) const
+    {
+        int index = 0;
+        if (hit.kind == HitKind::sphere) index = scene->spheres[size_t(hit.index)].material;
+        else if (hit.kind == HitKind::quad) index = scene->quads[size_t(hit.index)].material;
+        else if (hit.kind == HitKind::mesh) index = scene->meshes[size_t(hit.index)].material;
+        m = index >= 0 && size_t(index) < scene->materials.size() ? &scene->materials[size_t(index)] : nullptr;
+    }
+};
+
+bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
+{
+    hit = Hit();
+    const Scene &sc = *scene;
+    for (size_t i = 0; i < sc.spheres.size(); ++i) {
+        const double t = hit_sphere(sc.spheres[i].center, sc.spheres[i].radius, ray, hit.t);
+        if (t < hit.t) hit.t = t, hit.kind = HitKind::sphere, hit.index = int(i);
+    }
+    double s = 0, tt = 0;
+    for (size_t i = 0; i < sc.quads.size(); ++i) {
+        const Quad &q = sc.quads[i];
+        const double t = hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, hit.t, s, tt);
+        if (t < hit.t) hit.t = t, hit.kind = HitKind::quad, hit.index = int(i), hit.u = s, hit.v = tt;
+    }
+    for (size_t i = 0; i < sc.lights.size(); ++i) {
+        const Light &l = sc.lights[i];
+        const double t = l.kind == LightKind::sphere ? hit_sphere(l.center, l.radius, ray, hit.t)
+                                                     : hit_parallelogram(l.corner, l.edge_u, l.edge_v, ray, hit.t, s, tt);
+        if (t < hit.t) hit.t = t, hit.kind = HitKind::light, hit.index = int(i);
+    }
+    kdrt_ray kray;
+    to_float(ray.origin, kray.org);
+    to_float(ray.dir, kray.dir);
+    kray.tmin = 0;
+    for (size_t i = 0; i < meshes.size(); ++i) {
+        kray.tmax = hit.t < kInf ? float(hit.t) : INFINITY;
+        kdrt_hit kh;
+        if (kdrt_intersect(meshes[i].tree, &kray, &kh) && kh.t < hit.t)
+            hit.t = kh.t, hit.kind = HitKind::mesh, hit.index = int(i), hit.mesh_hit = kh;
+    }
+    switch (hit.kind) {
+    case HitKind::none:
+    case HitKind::light:
+        return hit.kind != HitKind::none;
+    case HitKind::sphere: {
+        const Sphere &sp = sc.spheres[size_t(hit.index)];
+        hit.point = ray.origin + hit.t * ray.dir;
+        hit.normal = normalize(hit.point - sp.center);
+        // Spherical coordinates about +y.
+        hit.u = 0.5 + std::atan2(hit.normal.z, hit.normal.x) / (2 * kPi);
+        hit.v = std::acos(std::max(-1.0, std::min(1.0, hit.normal.y))) / kPi;
+        break;
+    }
+    case HitKind::quad: {
+        const Quad &q = sc.quads[size_t(hit.index)];
+        hit.point = q.corner + hit.u * q.edge_u + hit.v * q.edge_v;
+        hit.normal = normalize(cross(q.edge_u, q.edge_v));
+        break;
+    }
+    case HitKind::mesh: {
+        const MeshData &md = meshes[size_t(hit.index)];
+        float p[3], n[3];
+        kdrt_hit_surface(md.tree, &hit.mesh_hit, p, n);
+        hit.point = to_vec(p), hit.normal = to_vec(n);
+        // Meshes carry no texture coordinates: a textured mesh maps its box's x and z.
+        const Vec3 size = md.box_hi - md.box_lo;
+        hit.u = size.x > 0 ? (hit.point.x - md.box_lo.x) / size.x : 0;
+        hit.v = size.z > 0 ? (hit.point.z - md.box_lo.z) / size.z : 0;
+        break;
+    }
+    }
+    hit.shading_normal = hit.normal;
+    if (hit.kind == HitKind::mesh && sc.settings.enable_interpolation) {
+        const kt::Mesh &mesh = sc.meshes[size_t(hit.index)].mesh;
+        const MeshData &md = meshes[size_t(hit.index)];
+        const uint32_t t = hit.mesh_hit.triangle;
+        const double b1 = hit.mesh_hit.u, b2 = hit.mesh_hit.v, b0 = 1 - b1 - b2;
+        const auto vertex = [&](int k) { return mesh.indices.empty() ? 3 * t + uint32_t(k) : mesh.indices[3 * size_t(t) + size_t(k)]; };
+        const Vec3 n = normalize(b0 * md.vertex_normals[vertex(0)] + b1 * md.vertex_normals[vertex(1)] +
+                                 b2 * md.vertex_normals[vertex(2)]);
+        if (dot(n, n) > 0) hit.shading_normal = n;
+    }
+    return true;
+}
+
+// A shadow ray from origin to target: blocked by any sphere, quad or mesh between (lights are
+// not occluders; glass casts a full shadow, as in the original).
+bool Renderer::Impl::occluded(Vec3 origin, Vec3 target) const
+{
+    const Vec3 d = target - origin;
+    const double dist = length(d);
+    if (!(dist > 0)) return false;
+    const Ray ray{origin, (1.0 / dist) * d};
+    for (const Sphere &sp : scene->spheres)
+        if (hit_sphere(sp.center, sp.radius, ray, dist) < dist) return true;
+    double s, t;
+    for (const Quad &q : scene->quads)
+        if (hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, dist, s, t) < dist) return true;
+    kdrt_ray kray;
+    to_float(origin, kray.org);
+    to_float(d, kray.dir);  // target at t = 1 (kdrt_spawn_ray's rule for shadow rays)
+    kray.tmin = 0;
+    kray.tmax = 1;
+    for (const MeshData &md : meshes)
+        if (kdrt_occluded(md.tree, &kray)) return true;
+    return false;
+}
+
+// The next ray from a hit: its origin moved off the surface towards the side dir leaves on.
+Ray Renderer::Impl::spawn(const Hit &hit, Vec3 dir) const
+{
+    float fdir[3];
+    to_float(dir, fdir);
+    Ray next;
+    next.dir = normalize(dir);
+    if (hit.kind == HitKind::mesh) {
+        kdrt_ray kray;
+        kdrt_spawn_ray(meshes[size_t(hit.index)].tree, &hit.mesh_hit, fdir, &kray);
+        next.origin = to_vec(kray.org);
+    } else {
+        float p[3], n[3], out[3];
+        to_float(hit.point, p);
+        to_float(hit.normal, n);
+        kdrt_offset_ray_origin(p, n, fdir, out);
+        next.origin = to_vec(out);
+    }
+    return next;
+}
+
+Vec3 Renderer::Impl::texture(int texture_index, double u, double v) const
+{
+    if (texture_index < 0 || size_t(texture_index) >= scene->textures.size()) return {1, 1, 1};
+    const Texture &t = scene->textures[size_t(texture_index)];
+    if (!t.rgb.empty() && t.width > 0 && t.height > 0) {
+        // Nearest texel, repeating; v = 0 is the image's bottom row.
+        const double fu = u - std::floor(u), fv = v - std::floor(v);
+        const uint32_t x = std::min(t.width - 1, uint32_t(fu * t.width));
+        const uint32_t y = std::min(t.height - 1, uint32_t((1 - fv) * t.height));
+        const float *px = &t.rgb[(size_t(y) * t.width + x) * 3];
+        return {px[0], px[1], px[2]};
+    }
+    const long cell = long(std::floor(u * t.checker_scale)) + long(std::floor(v * t.checker_scale));
+    return (cell & 1) ? t.checker_b : t.checker_a;
+}
+
+// Phong at a hit seen along view_dir, with n the shading normal facing the viewer.
+Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, Rng &rng) const
+{
+    const Settings &st = scene->settings;
+    const Vec3 tex = st.enable_textures ? texture(m.texture, hit.u, hit.v) : Vec3{1, 1, 1};
+    Vec3 color = m.ambient;
+    const Vec3 to_eye = -1.0 * view_dir;
+    const uint32_t samples = std::max(1u, st.shadow_rays);
+    for (const Light &light : scene->lights) {
+        Vec3 sum;
+        for (uint32_t k = 0; k < samples; ++k) {
+            Vec3 q;
+            if (light.kind == LightKind::sphere) {
+                q = light.center;
+                if (st.shadow_rays > 1) {
+                    // A uniform point on the light's disc as seen from the hit.
+                    const Vec3 w = normalize(hit.point - light.center);
+                    const Vec3 a = normalize(cross(std::fabs(w.x) > 0.5 ? Vec3{0, 1, 0} : Vec3{1, 0, 0}, w));
+                    const Vec3 b = cross(w, a);
+                    const double r = light.radius * std::sqrt(rng.uniform()), phi = 2 * kPi * rng.uniform();
+                    q = q + (r * std::cos(phi)) * a + (r * std::sin(phi)) * b;
+                }
+            } else {
+                const double s = st.shadow_rays > 1 ? rng.uniform() : 0.5, t = st.shadow_rays > 1 ? rng.uniform() : 0.5;
+                q = light.corner + s * light.edge_u + t * light.edge_v;
+            }
+            const Vec3 l = normalize(q - hit.point);
+            const double n_dot_l = dot(n, l);
+            if (n_dot_l <= 0) continue;
+            if (st.shadow_rays > 0) {
+                const Ray shadow = spawn(hit, l);
+                if (occluded(shadow.origin, q)) continue;
+            }
+            Vec3 c = n_dot_l * (m.diffuse * tex);
+            if (st.phong) {
+                const Vec3 r = 2 * n_dot_l * n - l;  // l mirrored about n
+                const double r_dot_v = dot(r, to_eye);
+                if (r_dot_v > 0) c = c + std::pow(r_dot_v, m.shininess) * m.specular;
+            }
+            sum = sum + c;
+        }
+        color = color + (1.0 / samples) * (light.color * sum);
+    }
+    return color;
+}
+
+Renderer::Impl::GlassStep Renderer::Impl::glass(const Ray &ray, const Hit &hit, const Material &m,
+                                                 const kdrt_media_stack &media, bool reflect) const
+{
+    GlassStep step;
+    step.media = media;
+    float d[3], n[3], out[3];
+    to_float(ray.dir, d);
+    to_float(hit.shading_normal, n);
+    const double cos_i = std::fabs(dot(ray.dir, hit.shading_normal));
+    if (hit.kind == HitKind::quad) {
+        // A quad is a thin pane: no medium inside, so the light goes straight through it.
+        step.reflectance = kdrt_fresnel_dielectric(float(cos_i), float(kdrt_media_current_ior(&media) / m.ior));
+        if (reflect) {
+            kdrt_reflect(d, n, out);
+            step.next = spawn(hit, to_vec(out));
+        } else {
+            step.refracted = true;
+            step.next = spawn(hit, ray.dir);
+        }
+        step.ok = true;
+        return step;
+    }
+    const uint32_t object = hit.kind == HitKind::sphere ? sphere_object(hit.index) : mesh_object(hit.index);
+    const kdrt_media_crossing x = kdrt_media_at_surface(&media, object, float(m.ior), 0);
+    int crossed = 1;  // a false surface: straight on
+    Vec3 dir = ray.dir;
+    if (x.real) {
+        const float eta = x.eta_incident / x.eta_transmitted;
+        step.reflectance = kdrt_fresnel_dielectric(float(cos_i), eta);
+        if (reflect) {
+            kdrt_reflect(d, n, out);
+            crossed = 0;
+        } else {
+            crossed = kdrt_refract(d, n, eta, out);  // 0: total internal reflection, out mirrored
+            if (crossed < 0) return step;             // bad input (a NaN direction): end the path
+            step.total_internal = crossed == 0;
+        }
+        dir = to_vec(out);
+    }
+    if (crossed) {
+        const kdrt_result r = x.entering ? kdrt_media_enter(&step.media, object, float(m.ior), 0)
+                                         : kdrt_media_leave(&step.media, object);
+        if (r != KDRT_SUCCESS) return step;  // a full stack: end the path
+    }
+    step.refracted = crossed != 0;
+    step.next = spawn(hit, dir);
+    step.ok = true;
+    return step;
+}
+
+Vec3 Renderer::Impl::radiance(const Ray &ray, uint32_t bounces_left, const kdrt_media_stack &media, Rng &rng) const
+{
+    const Scene &sc = *scene;
+    Hit hit;
+    if (!intersect(ray, hit)) return sc.background;
+    if (hit.kind == HitKind::light) return sc.lights[size_t(hit.index)].color;
+    const Material *m = nullptr;
+    material_of(hit, m);
+    if (!m) return {0, 0, 0};
+    const Settings &st = sc.settings;
+    const bool mirror = m->kind == MaterialKind::mirror && st.enable_mirror;
+    const bool glass = m->kind == MaterialKind::glass && st.enable_glass;
+    if (!mirror && !glass) {
+        // Face the normals towards the viewer: both sides of every surface are lit.
+        Vec3 n = hit.shading_normal;
+        const bool back = dot(hit.normal, ray.dir) > 0;
+        if (back) n = -1.0 * n;
+        if (dot(n, ray.dir) > 0) n = back ? -1.0 * hit.normal : hit.normal;  // interpolation went past the silhouette
+        return phong(*m, hit, ray.dir, n, rng);
+    }
+    // Every mirror or glass surface met takes a bounce; out of bounces the path ends, black.
+    if (bounces_left == 0) return {0, 0, 0};
+    if (mirror) {
+        float d[3], n[3], out[3];
+        to_float(ray.dir, d);
+        to_float(hit.shading_normal, n);
+        kdrt_reflect(d, n, out);
+        return m->tint * radiance(spawn(hit, to_vec(out)), bounces_left - 1, media, rng);
+    }
+    const GlassStep through = this->glass(ray, hit, *m, media, false);
+    if (!through.ok) return {0, 0, 0};
+    Vec3 color = radiance(through.next, bounces_left - 1, through.media, rng);
+    if (through.refracted) color = m->tint * color;  // the glass filters what it lets through
+    if (through.refracted && st.fresnel && through.reflectance > 0) {
+        // FRESNEL: both branches, weighted by the exact reflectance: deterministic, no noise.
+        const GlassStep mirrored = this->glass(ray, hit, *m, media, true);
+        const double R = through.reflectance;
+        color = (1 - R) * color;
+        if (mirrored.ok) color = color + R * radiance(mirrored.next, bounces_left - 1, mirrored.media, rng);
+    }
+    return color;
+}
+
+Renderer::Renderer() : impl_(new Impl) {}
+Renderer::~Renderer() = default;
+
+double Renderer::build_seconds() const { return impl_->build_seconds; }
+
+bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error)
+{
+    impl_->clear();
+    impl_->scene = &scene;
+    for (const Sphere &s : scene.spheres)
+        if (!(s.radius > 0)) {
+            error = "a sphere has radius " + std::to_string(s.radius) + "; it must be positive";
+            return false;
+        }
+    const size_t nm = scene.materials.size();
+    auto bad_material = [&](int m) { return m < 0 || size_t(m) >= nm; };
+    for (const Sphere &s : scene.spheres)
+        if (bad_material(s.material)) { error = "a sphere's material " + std::to_string(s.material) + " does not exist"; return false; }
+    for (const Quad &q : scene.quads)
+        if (bad_material(q.material)) { error = "a quad's material " + std::to_string(q.material) + " does not exist"; return false; }
+    for (const MeshInstance &m : scene.meshes)
+        if (bad_material(m.material)) { error = "a mesh's material " + std::to_string(m.material) + " does not exist"; return false; }
+    kb::ThreadScheduler scheduler(threads);
+    const auto start = std::chrono::steady_clock::now();
+    for (const MeshInstance &mi : scene.meshes) {
+        impl_->meshes.emplace_back();
+        MeshData &md = impl_->meshes.back();
+        const kt::Mesh &mesh = mi.mesh;
+        const kdrt_triangles view = mesh.view();
+        kdrt_build_options options = kdrt_default_build_options();
+        options.max_leaf_size = scene.settings.max_leaf_size;
+        options.scheduler = scheduler.hooks();
+        kdrt_build_report report;
+        const kdrt_result r = kdrt_tree_build(&view, &options, &md.tree, &report);
+        if (r != KDRT_SUCCESS) {
+            error = "cannot build the tree of mesh " + mi.source + ": " + kdrt_result_string(r);
+            return false;
+        }
+        // Vertex normals: the sum of the unnormalised face normals around a vertex weighs each
+        // face by its area.
+        md.vertex_normals.assign(mesh.vertex_count(), Vec3{});
+        double p[3][3];
+        for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+            mesh.corners(t, p);
+            const Vec3 a{p[0][0], p[0][1], p[0][2]}, b{p[1][0], p[1][1], p[1][2]}, c{p[2][0], p[2][1], p[2][2]};
+            const Vec3 face = cross(b - a, c - a);
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t v = mesh.indices.empty() ? 3 * t + uint32_t(k) : mesh.indices[3 * size_t(t) + size_t(k)];
+                md.vertex_normals[v] = md.vertex_normals[v] + face;
+            }
+        }
+        for (Vec3 &n : md.vertex_normals) n = normalize(n);
+        const kdrt_aabb box = kdrt_tree_bounds(md.tree);
+        md.box_lo = to_vec(box.min), md.box_hi = to_vec(box.max);
+    }
+    impl_->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return true;
+}
+
+std::vector<PathEvent> Renderer::trace_specular_path(Vec3 origin, Vec3 direction, uint32_t max_events) const
+{
+    const Impl &im = *impl_;
+    std::vector<PathEvent> path;
+    kdrt_media_stack media;
+    kdrt_media_init(&media, float(im.scene->settings.air_index_medium));
+    Ray ray{origin, normalize(direction)};
+    for (uint32_t i = 0; i < max_events; ++i) {
+        Hit hit;
+        if (!im.intersect(ray, hit) || hit.kind == HitKind::light) break;
+        const Material *m = nullptr;
+        im.material_of(hit, m);
+        if (!m) break;
+        PathEvent e;
+        e.point = hit.point;
+        if (m->kind == MaterialKind::mirror && im.scene->settings.enable_mirror) {
+            float d[3], n[3], out[3];
+            to_float(ray.dir, d);
+            to_float(hit.shading_normal, n);
+            kdrt_reflect(d, n, out);
+            ray = im.spawn(hit, to_vec(out));
+            e.reflected = true;
+        } else if (m->kind == MaterialKind::glass && im.scene->settings.enable_glass) {
+            const Impl::GlassStep step = im.glass(ray, hit, *m, media, false);
+            if (!step.ok) break;
+            ray = step.next;
+            media = step.media;
+            e.refracted = step.refracted;
+            e.reflected = step.total_internal;
+        } else {
+            break;
+        }
+        e.direction = ray.dir;
+        path.push_back(e);
+    }
+    return path;
+}
+
+bool Renderer::render(const RenderOptions &options, Image &image, std::string &error) const
+{
+    const Impl &im = *impl_;
+    if (!im.scene) {
+        error = "render before prepare";
+        return false;
+    }
+    const Scene &sc = *im.scene;
+    if (options.width == 0 || options.height == 0) {
+        error = "the image has no pixels";
+        return false;
+    }
+    const uint32_t W = options.width, H = options.height;
+    image.width = W, image.height = H;
+    image.rgb.assign(size_t(W) * H * 3, 0.0f);
+
+    const Camera &cam = sc.camera;
+    const Vec3 forward = normalize(cam.target - cam.position);
+    const Vec3 right = normalize(cross(forward, cam.up));
+    if (!(dot(forward, forward) > 0)) {
+        error = "the camera's target is its position: it looks nowhere";
+        return false;
+    }
+    if (!(dot(right, right) > 0)) {
+        error = "the camera's up vector is zero or along its view direction";
+        return false;
+    }
+    if (!(cam.fov_degrees > 0 && cam.fov_degrees < 180)) {
+        error = "the camera's field of view must lie between 0 and 180 degrees";
+        return false;
+    }
+    const Vec3 up = cross(right, forward);
+    const double tan_half = std::tan(0.5 * cam.fov_degrees * kPi / 180.0);
+    const double aspect = double(W) / H;
+    const Settings &st = sc.settings;
+    kdrt_media_stack air;
+    if (kdrt_media_init(&air, float(st.air_index_medium)) != KDRT_SUCCESS) {
+        error = "AIR_INDEX_MEDIUM must be a positive finite index";
+        return false;
+    }
+
+    // 16x16 tiles handed out in order; each pixel only ever touches its own stream and slot.
+    const uint32_t tile = 16, tiles_x = (W + tile - 1) / tile, tiles_y = (H + tile - 1) / tile;
+    const uint32_t tiles = tiles_x * tiles_y;
+    std::atomic<uint32_t> next_tile(0), done_tiles(0);
+    std::mutex progress_mutex;
+    const auto start = std::chrono::steady_clock::now();
+    auto last_report = start;
+    bool all_joined = false;
+    auto report = [&](uint32_t done) {
+        if (!options.progress || (done == tiles && !all_joined)) return;  // 100% once, at the end
+        std::unique_lock<std::mutex> lock(progress_mutex, std::try_to_lock);
+        if (!lock.owns_lock()) return;
+        const auto now = std::chrono::steady_clock::now();
+        if (done < tiles && now - last_report < std::chrono::milliseconds(200)) return;
+        last_report = now;
+        const double elapsed = std::chrono::duration<double>(now - start).count();
+        const double fraction = double(done) / tiles;
+        const double eta = fraction > 0 ? elapsed * (1 - fraction) / fraction : 0;
+        const int width = 30, filled = int(fraction * width);
+        std::fprintf(stderr, "\r[%.*s%.*s] %3d%%  %.1f s, ETA %.1f s ", filled, "##############################",
+                     width - filled, "..............................", int(100 * fraction), elapsed, eta);
+        std::fflush(stderr);
+    };
+    auto work = [&]() {
+        for (uint32_t t; (t = next_tile.fetch_add(1)) < tiles;) {
+            const uint32_t x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
+            for (uint32_t y = y0; y < std::min(H, y0 + tile); ++y)
+                for (uint32_t x = x0; x < std::min(W, x0 + tile); ++x) {
+                    const uint64_t pixel = uint64_t(y) * W + x;
+                    Rng rng(options.seed, options.frame, pixel);
+                    Vec3 sum;
+                    for (uint32_t s = 0; s < st.nsamples; ++s) {
+                        // One sample: the pixel's centre; more: jittered over the pixel.
+                        const double jx = st.nsamples > 1 ? rng.uniform() : 0.5, jy = st.nsamples > 1 ? rng.uniform() : 0.5;
+                        const double sx = (2.0 * (x + jx) / W - 1.0) * tan_half * aspect;
+                        const double sy = (1.0 - 2.0 * (y + jy) / H) * tan_half;
+                        const Ray ray{cam.position, normalize(forward + sx * right + sy * up)};
+                        sum = sum + im.radiance(ray, st.max_bounces, air, rng);
+                    }
+                    float *px = &image.rgb[pixel * 3];
+                    px[0] = float(sum.x / st.nsamples), px[1] = float(sum.y / st.nsamples), px[2] = float(sum.z / st.nsamples);
+                }
+            report(++done_tiles);
+        }
+    };
+    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    std::vector<std::thread> helpers;
+    for (unsigned i = 1; i < threads; ++i) {
+        try {
+            helpers.emplace_back(work);
+        } catch (const std::system_error &) {
+            break;  // render with the threads there are
+        }
+    }
+    work();
+    for (std::thread &t : helpers) t.join();
+    if (options.progress) {
+        all_joined = true;
+        report(tiles);
+        std::fputc('\n', stderr);
+    }
+    return true;
+}
+
+}  // namespace kr
