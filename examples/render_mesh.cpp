@@ -10,6 +10,7 @@
 
 #include "mesh_io.hpp" // kt::Mesh, kt::load_mesh (Assimp, guarded against malformed files), kt::torus
 #include "thread_scheduler.hpp" // kb::ThreadScheduler: the SAH build's tasks on every core
+#include "vec3.hpp"             // kt::Vec3
 #include <stb_image_write.h>
 
 #include <algorithm>
@@ -55,19 +56,7 @@ const char *const kUsage =
 
 using kt::Mesh;
 
-struct Vec3 {
-    double x, y, z;
-};
-Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
-double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
-Vec3 normalize(Vec3 a)
-{
-    double len = std::sqrt(dot(a, a));
-    return len > 0 ? (1.0 / len) * a : a;
-}
+using kt::Vec3;
 
 double seconds_since(std::chrono::steady_clock::time_point start)
 {

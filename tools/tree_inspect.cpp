@@ -1,4 +1,5 @@
 #include "tree_inspect.hpp"
+#include "vec3.hpp"  // kt::Vec3
 
 #include <stb_image_write.h>
 
@@ -40,19 +41,7 @@ std::string json_number(double x)
     return std::isfinite(x) ? format("%.10g", x) : "null";
 }
 
-struct Vec3 {
-    double x, y, z;
-};
-Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
-double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
-Vec3 normalize(Vec3 a)
-{
-    const double l = std::sqrt(dot(a, a));
-    return l > 0 ? (1.0 / l) * a : a;
-}
+using kt::Vec3;
 
 // A box's corners, corner k having bit 0 for x, 1 for y, 2 for z (0: min, 1: max), and its 12
 // edges as pairs of corners differing in one bit.

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "mesh_io.hpp"  // kt::Mesh
+#include "vec3.hpp"     // kt::Vec3
 
 #include <cmath>
 #include <cstdint>
@@ -13,21 +14,12 @@
 
 namespace kr {
 
-struct Vec3 {
-    double x = 0, y = 0, z = 0;
-};
-inline Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
-inline Vec3 operator*(Vec3 a, Vec3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }  // colours
-inline double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
-inline double length(Vec3 a) { return std::sqrt(dot(a, a)); }
-inline Vec3 normalize(Vec3 a)
-{
-    const double len = length(a);
-    return len > 0 ? (1.0 / len) * a : a;
-}
+// The shared double vector (bench/vec3.hpp), and its functions, as kr's own.
+using kt::Vec3;
+using kt::cross;
+using kt::dot;
+using kt::length;
+using kt::normalize;
 
 // The original's global settings, by their names (--set KEY=VALUE, a scene file's "settings").
 struct Settings {
