@@ -11,6 +11,7 @@
 #include "mesh_io.hpp" // kt::Mesh, kt::load_mesh (Assimp, guarded against malformed files), kt::torus
 #include "thread_scheduler.hpp" // kb::ThreadScheduler: the SAH build's tasks on every core
 #include "vec3.hpp"             // kt::Vec3
+#include "atomic_file.hpp"      // kt::write_file_atomically
 #include <stb_image_write.h>
 
 #include <algorithm>
@@ -88,48 +89,20 @@ bool parse_size(const std::string &text, int &width, int &height)
     return true;
 }
 
-// stbi_write_png_to_func's sink: our own FILE, so every write error is seen.
-struct Sink {
-    FILE *file;
-    bool ok;
-};
-void write_to_sink(void *context, void *data, int size)
-{
-    Sink *sink = static_cast<Sink *>(context);
-    if (sink->ok && std::fwrite(data, 1, size_t(size), sink->file) != size_t(size)) sink->ok = false;
-}
-
-// Writes the PNG to a temporary file beside path and renames it over path, so a failed run
+// Encodes the PNG in memory and writes it through a temporary file and a rename, so a failed run
 // leaves no output file behind.
 bool write_png(const std::string &path, int width, int height, const std::vector<unsigned char> &rgb,
                std::string &error)
 {
-    struct stat target;
-    if (stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode)) {
-        error = "cannot write " + path + ": it exists and is not a regular file";
+    std::string png;
+    const auto append = [](void *context, void *data, int size) {
+        static_cast<std::string *>(context)->append(static_cast<const char *>(data), size_t(size));
+    };
+    if (!stbi_write_png_to_func(append, &png, width, height, 3, rgb.data(), width * 3)) {
+        error = "cannot encode the PNG (out of memory?)";
         return false;
     }
-    const std::string tmp = path + ".tmp-" + std::to_string(long(getpid()));
-    Sink sink = {std::fopen(tmp.c_str(), "wb"), true};
-    if (!sink.file) {
-        error = "cannot create " + tmp + ": " + std::strerror(errno);
-        return false;
-    }
-    const int encoded = stbi_write_png_to_func(write_to_sink, &sink, width, height, 3, rgb.data(), width * 3);
-    const int write_errno = errno;
-    const bool closed = std::fclose(sink.file) == 0;
-    if (!encoded || !sink.ok || !closed) {
-        error = encoded ? "cannot write " + tmp + ": " + std::strerror(write_errno)
-                        : std::string("cannot encode the PNG (out of memory?)");
-        std::remove(tmp.c_str());
-        return false;
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        error = "cannot rename " + tmp + " to " + path + ": " + std::strerror(errno);
-        std::remove(tmp.c_str());
-        return false;
-    }
-    return true;
+    return kt::write_file_atomically(path, png, error);
 }
 
 int fail(const std::string &message)

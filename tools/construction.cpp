@@ -2,6 +2,7 @@
 // tools/construction_pictures.py. The tree is kdrt's own, read back with the inspection API.
 //
 //   kdrt-construction [TRIANGLES.txt] [--builder median|sah] [--leaf-size N] [--count N] [--seed S] -o OUT.json
+#include "atomic_file.hpp"  // kt::write_file_atomically
 #include "construction.hpp"
 #include "tree_inspect.hpp"
 
@@ -82,7 +83,7 @@ int main(int argc, char **argv)
     if (output == "-") {
         std::fputs(json.c_str(), stdout);
     } else {
-        if (!kdrt_tools::write_file_atomically(output, json, error)) return fail(error);
+        if (!kt::write_file_atomically(output, json, error)) return fail(error);
         std::fprintf(stderr, "kdrt-construction: %zu triangles, %zu steps, %zu leaves -> %s\n", positions.size() / 9,
                      construction.steps.size(), construction.leaves.size(), output.c_str());
     }

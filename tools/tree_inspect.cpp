@@ -1,5 +1,6 @@
 #include "tree_inspect.hpp"
-#include "vec3.hpp"  // kt::Vec3
+#include "atomic_file.hpp"  // kt::write_file_atomically
+#include "vec3.hpp"         // kt::Vec3
 
 #include <stb_image_write.h>
 
@@ -73,35 +74,6 @@ bool parse_count(const char *text, unsigned long max, unsigned long &out)
     const unsigned long v = std::strtoul(text, &end, 10);
     if (errno || *end != '\0' || v > max) return false;
     out = v;
-    return true;
-}
-
-bool write_file_atomically(const std::string &path, const std::string &text, std::string &error)
-{
-    struct stat target;
-    if (stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode)) {
-        error = "cannot write '" + path + "': it exists and is not a regular file";
-        return false;
-    }
-    const std::string tmp = path + ".tmp-" + std::to_string(long(getpid()));
-    FILE *file = std::fopen(tmp.c_str(), "wb");
-    if (!file) {
-        error = "cannot write '" + path + "': " + std::strerror(errno);
-        return false;
-    }
-    const bool written = std::fwrite(text.data(), 1, text.size(), file) == text.size();
-    const int write_errno = errno;
-    const bool closed = std::fclose(file) == 0;
-    if (!written || !closed) {
-        error = "cannot write '" + path + "': " + std::strerror(written ? errno : write_errno);
-        std::remove(tmp.c_str());
-        return false;
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        error = "cannot write '" + path + "': rename: " + std::strerror(errno);
-        std::remove(tmp.c_str());
-        return false;
-    }
     return true;
 }
 
@@ -267,7 +239,7 @@ bool write_boxes(const std::vector<DepthBox> &boxes, const std::string &path, st
             text += line;
         }
     }
-    return write_file_atomically(path, text, error);
+    return kt::write_file_atomically(path, text, error);
 }
 
 bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
@@ -346,7 +318,7 @@ bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std:
         error = "cannot encode the PNG (out of memory?)";
         return false;
     }
-    return write_file_atomically(path, png, error);
+    return kt::write_file_atomically(path, png, error);
 }
 
 }  // namespace kdrt_tools

@@ -51,9 +51,6 @@ bool write_boxes(const std::vector<DepthBox> &boxes, const std::string &path, st
 bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
                          int height, const std::string &path, std::string &error);
 
-// Writes text to path through a temporary file beside it and a rename: all or nothing.
-bool write_file_atomically(const std::string &path, const std::string &text, std::string &error);
-
 // A whole number in [0, max] with nothing after it.
 bool parse_count(const char *text, unsigned long max, unsigned long &out);
 

@@ -1,6 +1,8 @@
-// Image files: OpenEXR (linear, half or float) and PNG (sRGB, clamped), written atomically:
-// a temporary file beside the output, renamed over it only once complete.
+// Image files: OpenEXR (linear, half or float) and PNG (sRGB, clamped), written atomically
+// (bench/atomic_file.hpp): a temporary file beside the output, renamed over it once complete.
 #include "render.hpp"
+
+#include "atomic_file.hpp"  // kt::write_atomically, kt::write_file_atomically
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -12,13 +14,9 @@
 #include <stb_image.h>
 #include <stb_image_write.h>
 
-#include <unistd.h>
-#include <sys/stat.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cctype>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -37,13 +35,6 @@ std::string lower_extension(const std::string &path)
     return ext;
 }
 
-// A name beside path that no other writer in this process or another uses at the same time.
-std::string temporary_name(const std::string &path)
-{
-    static std::atomic<unsigned> counter(0);
-    return path + ".tmp-" + std::to_string(long(getpid())) + "-" + std::to_string(counter++);
-}
-
 unsigned char linear_to_srgb8(float v)
 {
     const double c = std::min(1.0, std::max(0.0, double(v)));  // clamp: no tone curve beyond it
@@ -57,34 +48,21 @@ float srgb8_to_linear(unsigned char v)
     return float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
 }
 
-struct Sink {
-    FILE *file;
-    bool ok;
-};
-void write_to_sink(void *context, void *data, int size)
-{
-    Sink *sink = static_cast<Sink *>(context);
-    if (sink->ok && std::fwrite(data, 1, size_t(size), sink->file) != size_t(size)) sink->ok = false;
-}
-
-bool write_png(const std::string &tmp, const Image &image, std::string &error)
+// The PNG encoded in memory, then written whole by kt::write_file_atomically.
+bool write_png(const std::string &path, const Image &image, std::string &error)
 {
     std::vector<unsigned char> rgb(image.rgb.size());
     for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = linear_to_srgb8(image.rgb[i]);
-    Sink sink = {std::fopen(tmp.c_str(), "wb"), true};
-    if (!sink.file) {
-        error = "cannot create " + tmp + ": " + std::strerror(errno);
+    std::string png;
+    const auto append = [](void *context, void *data, int size) {
+        static_cast<std::string *>(context)->append(static_cast<const char *>(data), size_t(size));
+    };
+    if (!stbi_write_png_to_func(append, &png, int(image.width), int(image.height), 3, rgb.data(),
+                                int(image.width) * 3)) {
+        error = "cannot write '" + path + "': cannot encode the PNG";
         return false;
     }
-    const int encoded = stbi_write_png_to_func(write_to_sink, &sink, int(image.width), int(image.height), 3,
-                                               rgb.data(), int(image.width) * 3);
-    const int write_errno = errno;
-    const bool closed = std::fclose(sink.file) == 0;
-    if (!encoded || !sink.ok || !closed) {
-        error = encoded ? "cannot write " + tmp + ": " + std::strerror(write_errno) : std::string("cannot encode the PNG");
-        return false;
-    }
-    return true;
+    return kt::write_file_atomically(path, png, error);
 }
 
 bool write_exr(const std::string &tmp, const Image &image, bool exr_float, std::string &error)
@@ -182,23 +160,10 @@ bool write_image(const std::string &path, const Image &image, bool exr_float, st
         error = "cannot write '" + path + "': the image is empty or inconsistent";
         return false;
     }
-    struct stat target;
-    if (stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode)) {
-        error = "cannot write '" + path + "': it exists and is not a regular file";
-        return false;
-    }
-    const std::string tmp = temporary_name(path);
-    const bool written = lower_extension(path) == ".png" ? write_png(tmp, image, error) : write_exr(tmp, image, exr_float, error);
-    if (!written) {
-        std::remove(tmp.c_str());
-        return false;
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        error = "cannot rename " + tmp + " to " + path + ": " + std::strerror(errno);
-        std::remove(tmp.c_str());
-        return false;
-    }
-    return true;
+    if (lower_extension(path) == ".png") return write_png(path, image, error);
+    return kt::write_atomically(path, [&](const std::string &tmp, std::string &reason) {
+        return write_exr(tmp, image, exr_float, reason);
+    }, error);
 }
 
 bool read_image(const std::string &path, Image &image, std::string &error)
