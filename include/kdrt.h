@@ -413,6 +413,21 @@ KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
 
+/* The work one query did, for measuring (bench/kdrt-ray-costs). Counting is compiled in only
+   where KDRT_TRAVERSAL_STATS is defined before the implementation; kdrt_intersect_counted()
+   exists only there, and kdrt_intersect() stays free of it. */
+typedef struct kdrt_traversal_stats {
+    uint64_t inner_nodes;    /* inner nodes visited */
+    uint64_t leaves;         /* leaves visited, empty ones included */
+    uint64_t empty_leaves;
+    uint64_t triangle_tests; /* intersection tests run (the mailbox skips repeats) */
+} kdrt_traversal_stats;
+#ifdef KDRT_TRAVERSAL_STATS
+/* kdrt_intersect(), adding its work to *stats (which may be NULL). */
+KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
+                                    kdrt_traversal_stats *stats);
+#endif
+
 /* Where a hit lies: the point from its barycentrics (more accurate than org + t * dir, whose
    error grows with t) and the unit geometric normal, (p1 - p0) x (p2 - p0) normalised, so it faces
    the side from which the corners run counter-clockwise. Either output may be NULL. Returns 0 and
@@ -2051,8 +2066,16 @@ typedef struct kdrt__todo {
     float t0, t1;
 } kdrt__todo;
 
-/* The one traversal, front to back, for the nearest hit or (any_hit) the first found. */
-static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *best, int any_hit)
+#ifdef KDRT_TRAVERSAL_STATS
+#define KDRT__COUNT(stats, field, n) ((void)((stats) && ((stats)->field += (n))))
+#else
+#define KDRT__COUNT(stats, field, n) ((void)(stats)) /* compiled out: the hot loop stays as it is */
+#endif
+
+/* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
+   counting is compiled in and it is not NULL, gets the work done. */
+static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *best, int any_hit,
+                          kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node = 0;
@@ -2072,6 +2095,7 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
         uint32_t axis = n->bits & 3u;
         if (axis != KDRT__LEAF) {
             float split = n->u.split, o = s.org[axis];
+            KDRT__COUNT(stats, inner_nodes, 1);
             float t_split = (split - o) * s.inv_dir[axis];
             int below_first = o < split || (o == split && s.dir[axis] <= 0.0f);
             uint32_t near_child = below_first ? node + 1 : n->bits >> 2;
@@ -2104,12 +2128,15 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
         {
             const uint32_t *refs = tree->refs + n->u.first_ref;
             uint32_t i, count = n->bits >> 2;
+            KDRT__COUNT(stats, leaves, 1);
+            KDRT__COUNT(stats, empty_leaves, count == 0);
             for (i = 0; i < count; ++i) {
                 const kdrt__triangle *tri = tree->triangles + refs[i];
                 uint32_t *box = &tested[refs[i] & (KDRT__MAILBOX - 1u)];
                 int found;
                 if (*box == refs[i]) continue;
                 *box = refs[i];
+                KDRT__COUNT(stats, triangle_tests, 1);
                 found = tree->watertight ? kdrt__intersect_watertight(tree->vertices, tri, &s, best)
                                          : kdrt__intersect_fast(tree->vertices, tri, &s, best);
                 if (found && any_hit) return 1;
@@ -2125,20 +2152,33 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
     }
 }
 
-KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
+static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit, kdrt_traversal_stats *stats)
 {
     if (!hit) return 0;
     if (!tree || !ray) {
         hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
         return 0;
     }
-    return kdrt__traverse(tree, ray, hit, 0);
+    return kdrt__traverse(tree, ray, hit, 0, stats);
 }
+
+KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
+{
+    return kdrt__intersect(tree, ray, hit, NULL);
+}
+
+#ifdef KDRT_TRAVERSAL_STATS
+KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
+                                    kdrt_traversal_stats *stats)
+{
+    return kdrt__intersect(tree, ray, hit, stats);
+}
+#endif
 
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
 {
     kdrt_hit hit;
-    return tree && ray && kdrt__traverse(tree, ray, &hit, 1);
+    return tree && ray && kdrt__traverse(tree, ray, &hit, 1, NULL);
 }
 
 /* ---- secondary rays ---- */
