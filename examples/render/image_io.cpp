@@ -128,21 +128,6 @@ bool read_exr(const std::string &path, Image &image, std::string &error)
     return true;
 }
 
-bool read_png(const std::string &path, Image &image, std::string &error)
-{
-    int w = 0, h = 0, channels = 0;
-    unsigned char *pixels = stbi_load(path.c_str(), &w, &h, &channels, 3);
-    if (!pixels) {
-        error = "cannot read " + path + ": " + (stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
-        return false;
-    }
-    image.width = uint32_t(w), image.height = uint32_t(h);
-    image.rgb.resize(size_t(w) * size_t(h) * 3);
-    for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = srgb8_to_linear(pixels[i]);
-    stbi_image_free(pixels);
-    return true;
-}
-
 }  // namespace
 
 bool check_image_extension(const std::string &path, std::string &error)
@@ -170,9 +155,24 @@ bool read_image(const std::string &path, Image &image, std::string &error)
 {
     const std::string ext = lower_extension(path);
     if (ext == ".exr") return read_exr(path, image, error);
-    if (ext == ".png") return read_png(path, image, error);
+    if (ext == ".png") return read_srgb_image(path, image, error);
     error = "cannot read '" + path + "': the extension must be .png or .exr";
     return false;
+}
+
+bool read_srgb_image(const std::string &path, Image &image, std::string &error)
+{
+    int w = 0, h = 0, channels = 0;
+    unsigned char *pixels = stbi_load(path.c_str(), &w, &h, &channels, 3);
+    if (!pixels) {
+        error = "cannot read " + path + ": " + (stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
+        return false;
+    }
+    image.width = uint32_t(w), image.height = uint32_t(h);
+    image.rgb.resize(size_t(w) * size_t(h) * 3);
+    for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = srgb8_to_linear(pixels[i]);
+    stbi_image_free(pixels);
+    return true;
 }
 
 bool image_rmse(const Image &a, const Image &b, double &rmse, std::string &error)

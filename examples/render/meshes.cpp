@@ -1,8 +1,6 @@
 // Meshes and textures of a scene, read from files: kr::load_meshes and kr::load_textures.
 #include "render.hpp"
 
-#include <stb_image.h>
-
 #include <algorithm>
 #include <cmath>
 #include <sys/stat.h>
@@ -53,12 +51,6 @@ void place(MeshInstance &m)
         p[i + 1] = float(m.position.y + y);
         p[i + 2] = float(m.position.z - s * x + c * z);
     }
-}
-
-float srgb_to_linear(unsigned char v)
-{
-    const double c = v / 255.0;
-    return float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
 }
 
 }  // namespace
@@ -121,16 +113,13 @@ bool load_textures(Scene &scene, std::string &error)
 {
     for (Texture &t : scene.textures) {
         if (t.file.empty() || !t.rgb.empty()) continue;
-        int w = 0, h = 0, channels = 0;
-        unsigned char *pixels = stbi_load(t.file.c_str(), &w, &h, &channels, 3);
-        if (!pixels) {
-            error = "cannot read texture " + t.file + ": " + (stbi_failure_reason() ? stbi_failure_reason() : "unknown error");
+        Image image;
+        if (!read_srgb_image(t.file, image, error)) {
+            error = "texture " + t.name + ": " + error;
             return false;
         }
-        t.width = uint32_t(w), t.height = uint32_t(h);
-        t.rgb.resize(size_t(w) * size_t(h) * 3);
-        for (size_t i = 0; i < t.rgb.size(); ++i) t.rgb[i] = srgb_to_linear(pixels[i]);
-        stbi_image_free(pixels);
+        t.width = image.width, t.height = image.height;
+        t.rgb = std::move(image.rgb);
     }
     return true;
 }

@@ -39,6 +39,9 @@ struct Image {
 bool write_image(const std::string &path, const Image &image, bool exr_float, std::string &error);
 // Reads a .exr (OpenEXR, its R, G and B channels) or .png (stb_image, sRGB decoded to linear).
 bool read_image(const std::string &path, Image &image, std::string &error);
+// Any 8-bit image stb_image reads (PNG, JPEG, BMP, TGA, ...), sRGB decoded to linear: PNGs for
+// read_image, and textures.
+bool read_srgb_image(const std::string &path, Image &image, std::string &error);
 // true when path ends in .png or .exr; else false with a message.
 bool check_image_extension(const std::string &path, std::string &error);
 // Root mean square difference over every pixel and channel; the sizes must match.
