@@ -64,6 +64,23 @@ void append_png(void *context, void *data, int size)
     static_cast<std::string *>(context)->append(static_cast<const char *>(data), size_t(size));
 }
 
+// Calls visit(info) for every node in index order; false with kdrt_tree_node's error if one fails.
+template <typename Visit>
+bool for_each_node(const kdrt_tree *tree, std::string &error, Visit &&visit)
+{
+    const uint32_t count = kdrt_tree_node_count(tree);
+    for (uint32_t i = 0; i < count; ++i) {
+        kdrt_node_info n;
+        const kdrt_result r = kdrt_tree_node(tree, i, &n);
+        if (r != KDRT_SUCCESS) {
+            error = "kdrt_tree_node(" + std::to_string(i) + "): " + kdrt_result_string(r);
+            return false;
+        }
+        visit(n);
+    }
+    return true;
+}
+
 }  // namespace
 
 bool parse_count(const char *text, unsigned long max, unsigned long &out)
@@ -83,24 +100,18 @@ bool walk_tree(const kdrt_tree *tree, TreeReport &report, std::string &error)
     report.inner_nodes = report.leaves = report.empty_leaves = report.references = 0;
     report.leaves_by_depth.clear();
     report.leaves_by_triangles.clear();
-    const uint32_t count = kdrt_tree_node_count(tree);
-    for (uint32_t i = 0; i < count; ++i) {
-        kdrt_node_info n;
-        const kdrt_result r = kdrt_tree_node(tree, i, &n);
-        if (r != KDRT_SUCCESS) {
-            error = "kdrt_tree_node(" + std::to_string(i) + "): " + kdrt_result_string(r);
-            return false;
-        }
+    const bool walked = for_each_node(tree, error, [&](const kdrt_node_info &n) {
         if (!n.is_leaf) {
             report.inner_nodes += 1;
-            continue;
+            return;
         }
         report.leaves += 1;
         report.empty_leaves += n.triangle_count == 0;
         report.references += n.triangle_count;
         report.leaves_by_depth[n.depth] += 1;
         report.leaves_by_triangles[n.triangle_count] += 1;
-    }
+    });
+    if (!walked) return false;
     const kdrt_tree_stats &s = report.stats;
     if (report.inner_nodes + report.leaves != s.nodes || report.leaves != s.leaves ||
         report.references != s.triangle_refs) {
@@ -191,16 +202,10 @@ std::string report_json(const TreeReport &r)
 bool boxes_to_depth(const kdrt_tree *tree, uint32_t max_depth, std::vector<DepthBox> &out, std::string &error)
 {
     out.clear();
-    const uint32_t count = kdrt_tree_node_count(tree);
-    for (uint32_t i = 0; i < count; ++i) {
-        kdrt_node_info n;
-        const kdrt_result r = kdrt_tree_node(tree, i, &n);
-        if (r != KDRT_SUCCESS) {
-            error = "kdrt_tree_node(" + std::to_string(i) + "): " + kdrt_result_string(r);
-            return false;
-        }
-        if (n.depth <= max_depth) out.push_back({n.bounds, n.depth});
-    }
+    if (!for_each_node(tree, error, [&](const kdrt_node_info &n) {
+            if (n.depth <= max_depth) out.push_back({n.bounds, n.depth});
+        }))
+        return false;
     std::stable_sort(out.begin(), out.end(), [](const DepthBox &a, const DepthBox &b) { return a.depth < b.depth; });
     return true;
 }
