@@ -34,6 +34,8 @@
      KDRT_ASSERT(x)           internal invariant checks; default: assert() from <assert.h>
      KDRT_MALLOC(size, user)  default allocator when options.allocator is all zero;
      KDRT_FREE(ptr, user)     define both or neither (default: malloc and free)
+     KDRT_TRAVERSAL_STATS     also compile kdrt_intersect_counted(), which counts a query's work
+                              (nodes, leaves, triangle tests); other queries are unchanged
 
    OWNERSHIP
      The tree borrows the caller's buffers: kdrt_triangles.positions and .indices must stay alive
