@@ -1,4 +1,5 @@
 #include "bench.hpp"
+#include "parse.hpp"
 #include "timing.hpp"
 
 #include <algorithm>
@@ -66,16 +67,6 @@ bool parse_sah_costs(const std::string &text, std::vector<SahCosts> &out, std::s
         if (comma == std::string::npos) break;
         start = comma + 1;
     }
-    return true;
-}
-
-bool parse_unsigned(const std::string &text, unsigned long long max, unsigned long long &out) {
-    if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0]))) return false;
-    char *end = nullptr;
-    errno = 0;
-    unsigned long long v = std::strtoull(text.c_str(), &end, 10);
-    if (errno != 0 || *end != '\0' || v > max) return false;
-    out = v;
     return true;
 }
 
@@ -233,7 +224,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--hard-rays") {
             if (!value(v)) return false;
-            if (!parse_unsigned(v, 1ull << 32, n) || n == 0) {
+            if (!kt::parse_count(v, 1ull << 32, n) || n == 0) {
                 error = "--hard-rays wants a whole number from 1, got '" + v + "'";
                 return false;
             }
@@ -241,17 +232,15 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             hard_rays_given = true;
         } else if (arg == "--size") {
             if (!value(v)) return false;
-            size_t x = v.find('x');
             unsigned long long w = 0, h = 0;
-            if (x == std::string::npos || !parse_unsigned(v.substr(0, x), 32768, w) ||
-                !parse_unsigned(v.substr(x + 1), 32768, h) || w == 0 || h == 0) {
+            if (!kt::parse_size(v, 32768, w, h)) {
                 error = "--size wants WxH with 1 <= W, H <= 32768, got '" + v + "'";
                 return false;
             }
             out.width = unsigned(w), out.height = unsigned(h);
         } else if (arg == "--build-threads") {
             if (!value(v)) return false;
-            if (!parse_unsigned(v, 1024, n)) {
+            if (!kt::parse_count(v, 1024, n)) {
                 error = "--build-threads wants a whole number from 0 (all cores) to 1024, got '" + v + "'";
                 return false;
             }
@@ -259,7 +248,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         } else if (arg == "--threads" || arg == "--repeat" || arg == "--subdivide") {
             if (!value(v)) return false;
             unsigned long long max = arg == "--subdivide" ? 8 : 1024;
-            if (!parse_unsigned(v, max, n) || (arg != "--subdivide" && n == 0)) {
+            if (!kt::parse_count(v, max, n) || (arg != "--subdivide" && n == 0)) {
                 error = arg + " wants a whole number " + (arg == "--subdivide" ? "from 0" : "from 1") + " to " +
                         std::to_string(max) + ", got '" + v + "'";
                 return false;
@@ -267,7 +256,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             (arg == "--threads" ? out.threads : arg == "--repeat" ? out.repeat : out.subdivide) = unsigned(n);
         } else if (arg == "--reference-rays") {
             if (!value(v)) return false;
-            if (!parse_unsigned(v, 1ull << 40, n)) {
+            if (!kt::parse_count(v, 1ull << 40, n)) {
                 error = "--reference-rays wants a whole number, got '" + v + "'";
                 return false;
             }
@@ -279,7 +268,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             while (start <= v.size()) {
                 size_t comma = v.find(',', start);
                 std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-                if (!parse_unsigned(item, KDRT_MAX_TRIANGLES, n)) {
+                if (!kt::parse_count(item, KDRT_MAX_TRIANGLES, n)) {
                     error = "--leaf-sizes wants whole numbers separated by commas, got '" + v + "'";
                     return false;
                 }

@@ -9,6 +9,7 @@
 
 #include "bench.hpp"
 #include "mesh_io.hpp"
+#include "parse.hpp"
 #include "random.hpp"
 #include "ray_counts.hpp"
 
@@ -61,13 +62,6 @@ double ns_per_ray(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, unsi
     return best;
 }
 
-bool parse_size(const std::string &text, unsigned &w, unsigned &h)
-{
-    char x = 0, rest = 0;
-    return std::sscanf(text.c_str(), "%u%c%u%c", &w, &x, &h, &rest) == 3 && x == 'x' && w > 0 && h > 0 &&
-           w <= 8192 && h <= 8192;
-}
-
 int fail(const std::string &message)
 {
     std::fprintf(stderr, "kdrt-ray-costs: %s\n", message.c_str());
@@ -86,13 +80,11 @@ int main(int argc, char **argv)
             std::fputs(kUsage, stdout);
             return 0;
         } else if (arg == "--size" && i + 1 < argc) {
-            if (!parse_size(argv[++i], width, height)) return fail(std::string("--size wants WxH, got '") + argv[i] + "'");
+            if (!kt::parse_size(std::string(argv[++i]), 8192, width, height)) return fail(std::string("--size wants WxH, got '") + argv[i] + "'");
         } else if (arg == "--repeat" && i + 1 < argc) {
-            repeat = unsigned(std::strtoul(argv[++i], nullptr, 10));
-            if (repeat == 0 || repeat > 1000) return fail(std::string("--repeat wants 1 to 1000, got '") + argv[i] + "'");
+            if (!kt::parse_count(std::string(argv[++i]), 1000, repeat) || repeat == 0) return fail(std::string("--repeat wants 1 to 1000, got '") + argv[i] + "'");
         } else if (arg == "--subdivide" && i + 1 < argc) {
-            subdivide = unsigned(std::strtoul(argv[++i], nullptr, 10));
-            if (subdivide > 4) return fail(std::string("--subdivide wants 0 to 4, got '") + argv[i] + "'");
+            if (!kt::parse_count(std::string(argv[++i]), 4, subdivide)) return fail(std::string("--subdivide wants 0 to 4, got '") + argv[i] + "'");
         } else if (!arg.empty() && arg[0] == '-') {
             return fail("unknown option '" + arg + "' (--help lists them)");
         } else {

@@ -12,6 +12,7 @@
 #include "thread_scheduler.hpp" // kb::ThreadScheduler: the SAH build's tasks on every core
 #include "vec3.hpp"             // kt::Vec3
 #include "atomic_file.hpp"      // kt::write_file_atomically
+#include "parse.hpp"            // kt::parse_count, kt::parse_size
 #include <stb_image_write.h>
 
 #include <algorithm>
@@ -66,29 +67,6 @@ double seconds_since(std::chrono::steady_clock::time_point start)
 
 bool file_exists(const std::string &path) { return !path.empty() && access(path.c_str(), R_OK) == 0; }
 
-bool parse_uint(const char *text, unsigned long max, unsigned long &out)
-{
-    if (!text || *text < '0' || *text > '9') return false;
-    char *end = nullptr;
-    errno = 0;
-    const unsigned long value = std::strtoul(text, &end, 10);
-    if (errno != 0 || *end != '\0' || value > max) return false;
-    out = value;
-    return true;
-}
-
-bool parse_size(const std::string &text, int &width, int &height)
-{
-    const size_t x = text.find('x');
-    if (x == std::string::npos) return false;
-    const std::string w = text.substr(0, x), h = text.substr(x + 1);
-    unsigned long wv = 0, hv = 0;
-    if (!parse_uint(w.c_str(), 16384, wv) || !parse_uint(h.c_str(), 16384, hv) || wv == 0 || hv == 0)
-        return false;
-    width = int(wv), height = int(hv);
-    return true;
-}
-
 // Encodes the PNG in memory and writes it through a temporary file and a rename, so a failed run
 // leaves no output file behind.
 bool write_png(const std::string &path, int width, int height, const std::vector<unsigned char> &rgb,
@@ -130,11 +108,11 @@ static int run(int argc, char **argv)
             out_path = argv[++i];
         } else if (arg == "--size") {
             if (!has_value) return fail("--size needs WxH, e.g. --size 800x600");
-            if (!parse_size(argv[++i], width, height))
+            if (!kt::parse_size(std::string(argv[++i]), 16384, width, height))
                 return fail(std::string("bad --size '") + argv[i] + "': expected WxH with each side 1..16384");
         } else if (arg == "--leaf-size") {
             if (!has_value) return fail("--leaf-size needs a number");
-            if (!parse_uint(argv[++i], 0xFFFFFFFFul, leaf_size))
+            if (!kt::parse_count(std::string(argv[++i]), 0xFFFFFFFFul, leaf_size))
                 return fail(std::string("bad --leaf-size '") + argv[i] + "': expected a whole number");
         } else if (arg.size() > 1 && arg[0] == '-') {
             std::fputs(kUsage, stderr);

@@ -4,6 +4,7 @@
 //   kdrt-construction [TRIANGLES.txt] [--builder median|sah] [--leaf-size N] [--count N] [--seed S] -o OUT.json
 #include "atomic_file.hpp"  // kt::write_file_atomically
 #include "construction.hpp"
+#include "parse.hpp"  // kt::parse_count, kt::parse_size
 #include "tree_inspect.hpp"
 
 #include <cstdio>
@@ -52,13 +53,13 @@ int main(int argc, char **argv)
             else if (b == "sah") builder = KDRT_BUILDER_SAH;
             else return fail("--builder wants median or sah, not '" + b + "'");
         } else if (arg == "--leaf-size" && has_value) {
-            if (!kdrt_tools::parse_count(argv[++i], 1000000, leaf_size) || leaf_size == 0)
+            if (!kt::parse_count(argv[++i], 1000000, leaf_size) || leaf_size == 0)
                 return fail(std::string("--leaf-size wants a whole number from 1, not '") + argv[i] + "'");
         } else if (arg == "--count" && has_value) {
-            if (!kdrt_tools::parse_count(argv[++i], 10000, count) || count == 0)
+            if (!kt::parse_count(argv[++i], 10000, count) || count == 0)
                 return fail(std::string("--count wants a whole number from 1 to 10000, not '") + argv[i] + "'");
         } else if (arg == "--seed" && has_value) {
-            if (!kdrt_tools::parse_count(argv[++i], 0xFFFFFFFFul, seed))
+            if (!kt::parse_count(argv[++i], 0xFFFFFFFFul, seed))
                 return fail(std::string("--seed wants a whole number, not '") + argv[i] + "'");
         } else if (arg == "-o" && has_value) {
             output = argv[++i];

@@ -4,6 +4,7 @@
 //
 //   kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json] [--boxes OUT.obj|OUT.ply]
 //                [--depth D] [--picture OUT.png] [--size WxH]
+#include "parse.hpp"  // kt::parse_count, kt::parse_size
 #include "tree_inspect.hpp"
 
 #include <chrono>
@@ -58,10 +59,10 @@ int main(int argc, char **argv)
             if (builder_name != "sah" && builder_name != "median")
                 return fail("--builder wants median or sah, not '" + builder_name + "'");
         } else if (arg == "--leaf-size" && has_value) {
-            if (!kdrt_tools::parse_count(argv[++i], KDRT_MAX_TRIANGLES, leaf_size))
+            if (!kt::parse_count(argv[++i], KDRT_MAX_TRIANGLES, leaf_size))
                 return fail(std::string("--leaf-size wants a whole number, not '") + argv[i] + "'");
         } else if (arg == "--depth" && has_value) {
-            if (!kdrt_tools::parse_count(argv[++i], KDRT_MAX_DEPTH, depth))
+            if (!kt::parse_count(argv[++i], KDRT_MAX_DEPTH, depth))
                 return fail(std::string("--depth wants a whole number from 0 to 64, not '") + argv[i] + "'");
         } else if (arg == "--boxes" && has_value) {
             boxes_path = argv[++i];
@@ -69,9 +70,7 @@ int main(int argc, char **argv)
             picture_path = argv[++i];
         } else if (arg == "--size" && has_value) {
             const std::string size = argv[++i];
-            const size_t x = size.find('x');
-            if (x == std::string::npos || !kdrt_tools::parse_count(size.substr(0, x).c_str(), 8192, width) ||
-                !kdrt_tools::parse_count(size.substr(x + 1).c_str(), 8192, height) || width == 0 || height == 0)
+            if (!kt::parse_size(size, 8192, width, height))
                 return fail("--size wants WxH, each from 1 to 8192, not '" + size + "'");
         } else if (arg.size() > 1 && arg[0] == '-') {
             return fail("unknown option or missing value: '" + arg + "'\n" + usage);

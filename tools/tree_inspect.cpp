@@ -83,17 +83,6 @@ bool for_each_node(const kdrt_tree *tree, std::string &error, Visit &&visit)
 
 }  // namespace
 
-bool parse_count(const char *text, unsigned long max, unsigned long &out)
-{
-    if (!text || *text < '0' || *text > '9') return false;  // no sign, no space
-    errno = 0;
-    char *end = nullptr;
-    const unsigned long v = std::strtoul(text, &end, 10);
-    if (errno || *end != '\0' || v > max) return false;
-    out = v;
-    return true;
-}
-
 bool walk_tree(const kdrt_tree *tree, TreeReport &report, std::string &error)
 {
     kdrt_tree_get_stats(tree, &report.stats);

@@ -51,7 +51,5 @@ bool write_boxes(const std::vector<DepthBox> &boxes, const std::string &path, st
 bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
                          int height, const std::string &path, std::string &error);
 
-// A whole number in [0, max] with nothing after it.
-bool parse_count(const char *text, unsigned long max, unsigned long &out);
 
 }  // namespace kdrt_tools

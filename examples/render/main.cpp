@@ -1,5 +1,6 @@
 // kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
 // Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
+#include "parse.hpp"  // kt::parse_count, kt::parse_size
 #include "render.hpp"
 #include "scene_file.hpp"
 
@@ -67,17 +68,6 @@ int fail(const std::string &message, int code)
     return code;
 }
 
-bool parse_u64(const std::string &text, uint64_t max, uint64_t &out)
-{
-    if (text.empty() || text[0] < '0' || text[0] > '9') return false;
-    errno = 0;
-    char *end = nullptr;
-    const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
-    if (errno != 0 || *end != '\0' || v > max) return false;
-    out = v;
-    return true;
-}
-
 bool parse_double(const std::string &text, double &out)
 {
     errno = 0;
@@ -88,14 +78,12 @@ bool parse_double(const std::string &text, double &out)
     return true;
 }
 
+// WxH, sides 1..16384, at most 64 Mpixels.
 bool parse_size(const std::string &text, uint32_t &width, uint32_t &height)
 {
-    const size_t x = text.find('x');
-    uint64_t w = 0, h = 0;
-    if (x == std::string::npos || !parse_u64(text.substr(0, x), 16384, w) || !parse_u64(text.substr(x + 1), 16384, h) ||
-        w == 0 || h == 0 || w * h > (uint64_t(1) << 26))
-        return false;
-    width = uint32_t(w), height = uint32_t(h);
+    uint32_t w = 0, h = 0;
+    if (!kt::parse_size(text, 16384, w, h) || uint64_t(w) * h > (uint64_t(1) << 26)) return false;
+    width = w, height = h;
     return true;
 }
 
@@ -148,16 +136,16 @@ int run(int argc, char **argv)
         } else if (arg == "--threads") {
             const std::string v = value();
             uint64_t n = 0;
-            if (!parse_u64(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
+            if (!kt::parse_count(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
             options.threads = unsigned(n);
         } else if (arg == "--seed") {
             const std::string v = value();
-            if (!parse_u64(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
+            if (!kt::parse_count(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
         } else if (arg == "--animate") {
             animate = value();
         } else if (arg == "--frames") {
             const std::string v = value();
-            if (!parse_u64(v, 100000, frames) || frames == 0) throw UsageError{"bad --frames '" + v + "': expected 1..100000"};
+            if (!kt::parse_count(v, 100000, frames) || frames == 0) throw UsageError{"bad --frames '" + v + "': expected 1..100000"};
             have_frames = true;
         } else if (arg == "--reference") {
             reference = value();

@@ -1,6 +1,8 @@
 // The original's settings by name: --set KEY=VALUE and scene files' "settings" both come here.
 #include "scene.hpp"
 
+#include "parse.hpp"  // kt::parse_count
+
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
@@ -21,17 +23,6 @@ bool parse_bool(const std::string &value, bool &out)
     if (v == "1" || v == "TRUE" || v == "ON") out = true;
     else if (v == "0" || v == "FALSE" || v == "OFF") out = false;
     else return false;
-    return true;
-}
-
-bool parse_count(const std::string &value, uint32_t max, uint32_t &out)
-{
-    if (value.empty() || !std::isdigit(static_cast<unsigned char>(value[0]))) return false;
-    errno = 0;
-    char *end = nullptr;
-    const unsigned long long v = std::strtoull(value.c_str(), &end, 10);
-    if (errno != 0 || *end != '\0' || v > max) return false;
-    out = uint32_t(v);
     return true;
 }
 
@@ -62,19 +53,19 @@ bool apply_setting(Scene &scene, const std::string &key, const std::string &valu
     std::string expected;
     if (k == "NSAMPLES") {
         uint32_t n = 0;
-        ok = parse_count(value, 65536, n) && n > 0;
+        ok = kt::parse_count(value, 65536, n) && n > 0;
         expected = "an integer from 1 to 65536";
         if (ok) s.nsamples = n;
     }
-    else if (k == "MAX_BOUNCES") { ok = parse_count(value, 64, s.max_bounces); expected = "an integer from 0 to 64"; }
-    else if (k == "SHADOW_RAYS") { ok = parse_count(value, 4096, s.shadow_rays); expected = "an integer from 0 (no shadows) to 4096"; }
+    else if (k == "MAX_BOUNCES") { ok = kt::parse_count(value, 64, s.max_bounces); expected = "an integer from 0 to 64"; }
+    else if (k == "SHADOW_RAYS") { ok = kt::parse_count(value, 4096, s.shadow_rays); expected = "an integer from 0 (no shadows) to 4096"; }
     else if (k == "PHONG") { ok = parse_bool(value, s.phong); expected = "true or false"; }
     else if (k == "ENABLE_MIRROR") { ok = parse_bool(value, s.enable_mirror); expected = "true or false"; }
     else if (k == "ENABLE_GLASS") { ok = parse_bool(value, s.enable_glass); expected = "true or false"; }
     else if (k == "AIR_INDEX_MEDIUM") { ok = parse_number(value, 1e-3, 100, s.air_index_medium); expected = "an index of refraction from 0.001 to 100"; }
     else if (k == "MESH") { ok = !value.empty(); if (ok) s.mesh = value; expected = "a mesh name (stanford-bunny, ...) or a file path"; }
     else if (k == "ENABLE_INTERPOLATION") { ok = parse_bool(value, s.enable_interpolation); expected = "true or false"; }
-    else if (k == "MAX_LEAF_SIZE") { ok = parse_count(value, 1u << 20, s.max_leaf_size); expected = "an integer from 0 (no tree) to 1048576"; }
+    else if (k == "MAX_LEAF_SIZE") { ok = kt::parse_count(value, 1u << 20, s.max_leaf_size); expected = "an integer from 0 (no tree) to 1048576"; }
     else if (k == "ENABLE_TEXTURES") { ok = parse_bool(value, s.enable_textures); expected = "true or false"; }
     else if (k == "FRESNEL") { ok = parse_bool(value, s.fresnel); expected = "true or false"; }
     else if (k == "GLASS_IOR") {
