@@ -1146,25 +1146,27 @@ static void kdrt__arena_free(kdrt__arena *arena)
     arena->current = NULL;
 }
 
-/* Sort keys for the exact sweep: a float's bits turned so that unsigned order is numeric order
-   (-0 taken as +0), above the event type. At equal positions the sweep takes ends, then planars,
-   then starts (Wald & Havran 2006, sec. 4.2). */
+/* Events of the exact sweep, one uint64_t each: a float's bits turned so that unsigned order is
+   numeric order (-0 taken as +0) in the high 32 bits, the event type in bits 30-31 and the index
+   of its reference in the node below. At equal positions the sweep takes ends, then planars, then
+   starts (Wald & Havran 2006, sec. 4.2). */
 #define KDRT__EVENT_END 0u
 #define KDRT__EVENT_PLANAR 1u
 #define KDRT__EVENT_START 2u
+#define KDRT__EVENT_REF_MASK 0x3FFFFFFFu
 
-static uint64_t kdrt__event_key(float pos, uint32_t type)
+static uint64_t kdrt__event(float pos, uint32_t type, uint32_t ref)
 {
     uint32_t u;
     if (pos == 0.0f) pos = 0.0f;
     memcpy(&u, &pos, sizeof u);
     u = (u & 0x80000000u) ? ~u : u | 0x80000000u;
-    return ((uint64_t)u << 2) | type;
+    return ((uint64_t)u << 32) | ((uint64_t)type << 30) | (ref & KDRT__EVENT_REF_MASK);
 }
 
-static float kdrt__event_pos(uint64_t key)
+static float kdrt__event_pos(uint64_t event)
 {
-    uint32_t u = (uint32_t)(key >> 2);
+    uint32_t u = (uint32_t)(event >> 32);
     float pos;
     u = (u & 0x80000000u) ? u & 0x7FFFFFFFu : ~u;
     memcpy(&pos, &u, sizeof pos);
@@ -1213,60 +1215,88 @@ typedef struct kdrt__plane {
     float cost;
 } kdrt__plane;
 
-/* Costs the plane pos on axis k of the node [lo, hi] with below, planars and above triangles on
-   its sides, planars going either way, and keeps it in best if cheaper. inv_area is 1 over the
-   node's half area. */
-static void kdrt__consider(const kdrt__builder *b, kdrt__plane *best, int k, float pos, uint32_t below,
-                           uint32_t planars, uint32_t above, const float lo[3], const float hi[3],
-                           float inv_area)
+/* What costing planes on one axis of a node needs, worked out once per axis. */
+typedef struct kdrt__axis_cost {
+    int k;
+    float lo, hi;         /* the node's extent on the axis */
+    float cap, side;      /* the child boxes' areas are (cap + length * side) / ... */
+    float inv_area;       /* ... over the node's half area */
+    float trav, isect, isect_empty; /* SAH constants; isect_empty with the empty bonus */
+} kdrt__axis_cost;
+
+static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const float lo[3], const float hi[3],
+                                        float inv_area)
 {
+    kdrt__axis_cost c;
     int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
-    float d1 = hi[k1] - lo[k1], d2 = hi[k2] - lo[k2], cap = d1 * d2, side = d1 + d2;
-    float p_below = (cap + (pos - lo[k]) * side) * inv_area, p_above = (cap + (hi[k] - pos) * side) * inv_area;
-    float scale, cost;
-    if (!(pos > lo[k] && pos < hi[k])) return; /* a plane on the box's face separates nothing */
-    scale = (below + planars == 0 || above == 0) ? b->sah_isect * (1.0f - b->sah_empty_bonus) : b->sah_isect;
-    cost = b->sah_trav + scale * (p_below * (float)(below + planars) + p_above * (float)above);
-    if (cost < best->cost) best->axis = k, best->pos = pos, best->planar_below = 1, best->cost = cost;
-    scale = (below == 0 || above + planars == 0) ? b->sah_isect * (1.0f - b->sah_empty_bonus) : b->sah_isect;
-    cost = b->sah_trav + scale * (p_below * (float)below + p_above * (float)(above + planars));
-    if (cost < best->cost) best->axis = k, best->pos = pos, best->planar_below = 0, best->cost = cost;
+    float d1 = hi[k1] - lo[k1], d2 = hi[k2] - lo[k2];
+    c.k = k, c.lo = lo[k], c.hi = hi[k], c.cap = d1 * d2, c.side = d1 + d2, c.inv_area = inv_area;
+    c.trav = b->sah_trav, c.isect = b->sah_isect, c.isect_empty = b->sah_isect * (1.0f - b->sah_empty_bonus);
+    return c;
 }
 
-/* The exact sweep: every face of every reference's box is a candidate (Wald & Havran 2006, with
-   the events sorted per node). keys has room for 2n. */
-static void kdrt__exact_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n, const float lo[3],
-                              const float hi[3], float inv_area, int k_first, int k_last, uint64_t *keys,
-                              kdrt__plane *best)
+/* Costs the plane pos with below, planars and above triangles on its sides, planars going
+   either way, and keeps it in best if cheaper. */
+static void kdrt__consider(const kdrt__axis_cost *c, kdrt__plane *best, float pos, uint32_t below,
+                           uint32_t planars, uint32_t above)
 {
+    float p_below, p_above, scale, cost;
+    if (!(pos > c->lo && pos < c->hi)) return; /* a plane on the box's face separates nothing */
+    p_below = (c->cap + (pos - c->lo) * c->side) * c->inv_area;
+    p_above = (c->cap + (c->hi - pos) * c->side) * c->inv_area;
+    scale = (below + planars == 0 || above == 0) ? c->isect_empty : c->isect;
+    cost = c->trav + scale * (p_below * (float)(below + planars) + p_above * (float)above);
+    if (cost < best->cost) best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
+    if (planars == 0) return; /* the same plane again: no better */
+    scale = (below == 0 || above + planars == 0) ? c->isect_empty : c->isect;
+    cost = c->trav + scale * (p_below * (float)below + p_above * (float)(above + planars));
+    if (cost < best->cost) best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
+}
+
+/* A reference's events on axis k (one for a box flat on the axis, else two); returns how many. */
+static uint32_t kdrt__push_events(const kdrt__ref *ref, uint32_t index, int k, uint64_t *out)
+{
+    float l = ref->lo[k], h = ref->hi[k];
+    if (l == h) {
+        out[0] = kdrt__event(l, KDRT__EVENT_PLANAR, index);
+        return 1;
+    }
+    out[0] = kdrt__event(l, KDRT__EVENT_START, index);
+    out[1] = kdrt__event(h, KDRT__EVENT_END, index);
+    return 2;
+}
+
+/* The sweep over one axis's sorted events of a node of n references: every distinct position is
+   a candidate plane, costed with the counts on its sides. */
+static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, size_t count, uint32_t n,
+                        kdrt__plane *best)
+{
+    size_t i = 0;
+    uint32_t below = 0, above = n;
+    while (i < count) {
+        uint32_t at = (uint32_t)(events[i] >> 32), ends = 0, planars = 0, starts = 0;
+        float pos = kdrt__event_pos(events[i]);
+        for (; i < count && (uint32_t)(events[i] >> 32) == at; ++i) {
+            uint32_t type = (uint32_t)(events[i] >> 30) & 3u;
+            ends += type == KDRT__EVENT_END;
+            planars += type == KDRT__EVENT_PLANAR;
+            starts += type == KDRT__EVENT_START;
+        }
+        above -= planars + ends;
+        kdrt__consider(cost, best, pos, below, planars, above);
+        below += starts + planars;
+    }
+}
+
+/* Sorts each axis's events of refs[0..n) into events[k] (room for 2n each); returns the counts. */
+static void kdrt__sorted_events(const kdrt__ref *refs, uint32_t n, uint64_t *events[3], size_t count[3])
+{
+    uint32_t r;
     int k;
-    for (k = k_first; k <= k_last; ++k) {
-        size_t count = 0, i = 0;
-        uint32_t below = 0, above = n, r;
-        for (r = 0; r < n; ++r) {
-            float l = refs[r].lo[k], h = refs[r].hi[k];
-            if (l == h) {
-                keys[count++] = kdrt__event_key(l, KDRT__EVENT_PLANAR);
-            } else {
-                keys[count++] = kdrt__event_key(l, KDRT__EVENT_START);
-                keys[count++] = kdrt__event_key(h, KDRT__EVENT_END);
-            }
-        }
-        kdrt__sort_keys(keys, count);
-        while (i < count) {
-            uint64_t at = keys[i] >> 2;
-            uint32_t ends = 0, planars = 0, starts = 0;
-            float pos = kdrt__event_pos(keys[i]);
-            for (; i < count && keys[i] >> 2 == at; ++i) {
-                uint32_t type = (uint32_t)(keys[i] & 3u);
-                ends += type == KDRT__EVENT_END;
-                planars += type == KDRT__EVENT_PLANAR;
-                starts += type == KDRT__EVENT_START;
-            }
-            above -= planars + ends;
-            kdrt__consider(b, best, k, pos, below, planars, above, lo, hi, inv_area);
-            below += starts + planars;
-        }
+    for (k = 0; k < 3; ++k) {
+        count[k] = 0;
+        for (r = 0; r < n; ++r) count[k] += kdrt__push_events(&refs[r], r, k, events[k] + count[k]);
+        kdrt__sort_keys(events[k], count[k]);
     }
 }
 
@@ -1283,7 +1313,8 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
     uint32_t starts[3][KDRT__SAH_BINS], ends[3][KDRT__SAH_BINS], r, i;
     float scale[3];
     int k;
-    memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
+    for (k = 0; k < 3; ++k) /* only the bins in use */
+        memset(starts[k], 0, bins * sizeof(uint32_t)), memset(ends[k], 0, bins * sizeof(uint32_t));
     for (k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? (float)bins / (hi[k] - lo[k]) : 0.0f;
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
@@ -1295,52 +1326,51 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
         }
     for (k = 0; k < 3; ++k) {
         uint32_t below = 0, ended = 0;
+        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
         if (scale[k] == 0.0f) continue;
         for (i = 1; i < bins; ++i) {
             below += starts[k][i - 1], ended += ends[k][i - 1];
-            kdrt__consider(b, best, k, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below, 0,
-                           n - ended, lo, hi, inv_area);
+            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below, 0, n - ended);
         }
     }
 }
 
-/* Nodes with more references than this are binned; below it every candidate is tried. 256 bins
-   above 128 references build twice as fast as the exact sweep everywhere and trace 1-4% slower;
-   32 bins built as fast and traced 4-6% slower (README, "Binned or exact"). */
-#ifndef KDRT__SAH_AXIS_BINS
-#define KDRT__SAH_AXIS_BINS 8u
-#endif
-#ifndef KDRT__SAH_EXACT_AXIS_MIN
-#define KDRT__SAH_EXACT_AXIS_MIN 16u
-#endif
+/* Nodes with more references than this are binned; below it every candidate is tried, with the
+   events kept sorted (kdrt__exact_node). */
 #ifndef KDRT__SAH_EXACT_MAX /* overridable only to measure the choice (README) */
 #define KDRT__SAH_EXACT_MAX 128u
 #endif
 
-/* The node's split, or axis -1 for a leaf: at most max_leaf_size triangles, at max_depth, or no
-   plane cheaper than testing all n (cost-based termination). */
+static float kdrt__half_area(const float lo[3], const float hi[3])
+{
+    return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) + (hi[2] - lo[2]) * (hi[0] - lo[0]);
+}
+
+/* The split of a binned node, or axis -1 for a leaf: at max_depth, or no plane cheaper than
+   testing all n (cost-based termination). Where the bins find nothing worth a split, every
+   candidate is tried before the node is made a leaf. */
 static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
                                       uint32_t n, const float lo[3], const float hi[3], uint32_t depth,
                                       kdrt__plane *best)
 {
-    float area = (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) +
-                 (hi[2] - lo[2]) * (hi[0] - lo[0]);
-    float leaf_cost = b->sah_isect * (float)n;
+    float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
     if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return KDRT_SUCCESS;
-    if (n > KDRT__SAH_EXACT_AXIS_MIN)
-        kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area,
-                           n > KDRT__SAH_EXACT_MAX ? KDRT__SAH_BINS : KDRT__SAH_AXIS_BINS, best);
-    if (n <= KDRT__SAH_EXACT_MAX || !(best->cost < leaf_cost)) {
-        /* Every candidate: on the axis the bins chose, or on all three when the node is tiny or
-           the bins found nothing worth it. */
+    kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area, KDRT__SAH_BINS, best);
+    if (!(best->cost < leaf_cost)) {
         kdrt__mark mark = kdrt__arena_mark(arena);
-        uint64_t *keys = (uint64_t *)kdrt__arena_alloc(arena, 2 * (size_t)n * sizeof(uint64_t));
-        int all_axes = best->axis < 0 || !(best->cost < leaf_cost);
-        int k_first = all_axes ? 0 : best->axis, k_last = all_axes ? 2 : best->axis;
-        if (!keys) return KDRT_ERROR_OUT_OF_MEMORY;
-        best->axis = -1, best->cost = INFINITY;
-        kdrt__exact_plane(b, refs, n, lo, hi, 1.0f / area, k_first, k_last, keys, best);
+        uint64_t *events[3];
+        size_t count[3];
+        int k;
+        for (k = 0; k < 3; ++k) {
+            events[k] = (uint64_t *)kdrt__arena_alloc(arena, 2 * (size_t)n * sizeof(uint64_t));
+            if (!events[k]) return KDRT_ERROR_OUT_OF_MEMORY;
+        }
+        kdrt__sorted_events(refs, n, events, count);
+        for (k = 0; k < 3; ++k) {
+            kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, 1.0f / area);
+            kdrt__sweep(&cost, events[k], count[k], n, best);
+        }
         kdrt__arena_release(arena, mark);
     }
     if (!(best->cost < leaf_cost)) best->axis = -1;
@@ -1360,10 +1390,12 @@ static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 
 /* The children's references, in arrays from alloc (the arena, or the allocator at the top of a
    parallel build): a reference on one side is copied, one the plane cuts is clipped again to each
-   child's box (perfect splits) and goes only where some of the triangle lies. */
+   child's box (perfect splits) and goes only where some of the triangle lies. When sides is not
+   NULL it gets each reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
 static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
                                     uint32_t n, const kdrt__plane *plane, float child_lo[2][3],
-                                    float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2])
+                                    float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2],
+                                    unsigned char *sides, uint32_t *index[2])
 {
     uint32_t only[2] = {0, 0}, both = 0, r, c;
     for (r = 0; r < n; ++r) {
@@ -1380,12 +1412,17 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, 
     }
     for (r = 0; r < n; ++r) {
         unsigned side = kdrt__ref_side(&refs[r], plane);
+        if (sides) sides[r] = (unsigned char)side;
         for (c = 0; c < 2; ++c) {
             kdrt__ref *out = &child[c][count[c]];
-            if (!(side & (c ? KDRT__SIDE_ABOVE : KDRT__SIDE_BELOW))) continue;
-            if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) *out = refs[r], ++count[c];
-            else if (kdrt__clip_triangle(b->mesh, refs[r].tri, child_lo[c], child_hi[c], out->lo, out->hi))
+            uint32_t at = count[c];
+            if (!(side & (c ? KDRT__SIDE_ABOVE : KDRT__SIDE_BELOW))) {
+            } else if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) {
+                *out = refs[r], ++count[c];
+            } else if (kdrt__clip_triangle(b->mesh, refs[r].tri, child_lo[c], child_hi[c], out->lo, out->hi)) {
                 out->tri = refs[r].tri, ++count[c];
+            }
+            if (sides) index[c][r] = count[c] > at ? at : KDRT_INVALID_ID;
         }
     }
     return KDRT_SUCCESS;
@@ -1399,25 +1436,106 @@ static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__
     child_hi[0][plane->axis] = plane->pos, child_lo[1][plane->axis] = plane->pos;
 }
 
+/* Below KDRT__SAH_EXACT_MAX references every candidate plane is tried, from each axis's events
+kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
+split in order at every node, so that a node costs O(n) and only the events of the references its
+plane cuts are made and sorted again. */
+typedef struct kdrt__events {
+    uint64_t *axis[3];
+    size_t count[3];
+} kdrt__events;
+
+/* The exact region's split, or axis -1 for a leaf (as kdrt__choose_plane). */
+static void kdrt__exact_choose(const kdrt__builder *b, const kdrt__events *events, uint32_t n,
+                               const float lo[3], const float hi[3], uint32_t depth, kdrt__plane *best)
+{
+    float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
+    int k;
+    best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
+    if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return;
+    for (k = 0; k < 3; ++k) {
+        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, 1.0f / area);
+        kdrt__sweep(&cost, events->axis[k], events->count[k], n, best);
+    }
+    if (!(best->cost < leaf_cost)) best->axis = -1;
+}
+
+/* The children's events, still in order: the node's events of the references wholly on one
+   side, renumbered as index says (which keeps their order), merged with fresh, sorted events of
+   the references the plane cut, made from their clipped boxes. */
+static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *events, uint32_t n,
+                                      const unsigned char *sides, uint32_t *const index[2],
+                                      kdrt__ref *const child[2], const uint32_t count[2], kdrt__events out[2])
+{
+    const unsigned cut = KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
+    uint64_t *fresh = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
+    uint32_t r, c;
+    int k;
+    if (!fresh) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (k = 0; k < 3; ++k) {
+        size_t i, kept[2] = {0, 0};
+        for (c = 0; c < 2; ++c) {
+            out[c].axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
+            if (!out[c].axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
+        }
+        /* Written on both sides and kept on one: no branch to mispredict. A reference missing
+           from a side has index KDRT_INVALID_ID there, masked to a harmless number. */
+        for (i = 0; i < events->count[k]; ++i) {
+            uint64_t e = events->axis[k][i], at = e & ~(uint64_t)KDRT__EVENT_REF_MASK;
+            uint32_t ref = (uint32_t)e & KDRT__EVENT_REF_MASK;
+            out[0].axis[k][kept[0]] = at | (index[0][ref] & KDRT__EVENT_REF_MASK);
+            out[1].axis[k][kept[1]] = at | (index[1][ref] & KDRT__EVENT_REF_MASK);
+            kept[0] += sides[ref] == KDRT__SIDE_BELOW;
+            kept[1] += sides[ref] == KDRT__SIDE_ABOVE;
+        }
+        for (c = 0; c < 2; ++c) {
+            uint64_t *o = out[c].axis[k];
+            size_t made = 0, w;
+            for (r = 0; r < n; ++r)
+                if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID)
+                    made += kdrt__push_events(&child[c][index[c][r]], index[c][r], k, fresh + made);
+            kdrt__sort_keys(fresh, made);
+            out[c].count[k] = kept[c] + made;
+            for (i = kept[c], w = kept[c] + made; made > 0;) /* merge from the back, in place */
+                o[--w] = (i > 0 && o[i - 1] > fresh[made - 1]) ? o[--i] : fresh[--made];
+        }
+    }
+    return KDRT_SUCCESS;
+}
+
 /* Builds the subtree of a node with box [lo, hi] into b, depth first (the below child right
-   after its parent); scratch memory comes from the arena and is back there on return. */
+   after its parent); events are the node's sorted events in the exact region, NULL above it.
+   Scratch memory comes from the arena and is back there on return. */
 static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs, uint32_t n,
-                                  const float lo[3], const float hi[3], uint32_t depth)
+                                  const kdrt__events *events, const float lo[3], const float hi[3],
+                                  uint32_t depth)
 {
     kdrt__mark mark = kdrt__arena_mark(arena);
     kdrt__ref *child[2];
-    uint32_t node, count[2], i;
+    kdrt__events entry, child_events[2];
+    unsigned char *sides = NULL;
+    uint32_t node, count[2], *index[2] = {NULL, NULL}, i;
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
     kdrt_result r;
+    int k;
 
+    if (!events && n <= KDRT__SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
+        /* Down to the exact region: each axis's events sorted, once for the whole subtree. */
+        for (k = 0; k < 3; ++k) {
+            entry.axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
+            if (!entry.axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
+        }
+        kdrt__sorted_events(refs, n, entry.axis, entry.count);
+        events = &entry;
+    }
     if (b->node_count >= KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
     r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count + 1,
                       sizeof(kdrt__node));
     if (r != KDRT_SUCCESS) return r;
     node = b->node_count++;
-    r = kdrt__choose_plane(b, arena, refs, n, lo, hi, depth, &plane);
-    if (r != KDRT_SUCCESS) return r;
+    if (events) kdrt__exact_choose(b, events, n, lo, hi, depth, &plane);
+    else if ((r = kdrt__choose_plane(b, arena, refs, n, lo, hi, depth, &plane)) != KDRT_SUCCESS) return r;
     if (plane.axis < 0) {
         uint32_t *tris = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
         if (!tris) return KDRT_ERROR_OUT_OF_MEMORY;
@@ -1427,12 +1545,22 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
         return r;
     }
     kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
-    r = kdrt__split_refs(b, arena, refs, n, &plane, child_lo, child_hi, child, count);
-    if (r == KDRT_SUCCESS) r = kdrt__sah_node(b, arena, child[0], count[0], child_lo[0], child_hi[0], depth + 1);
+    if (events) {
+        sides = (unsigned char *)kdrt__arena_alloc(arena, (size_t)n + 1);
+        index[0] = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
+        index[1] = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
+        if (!sides || !index[0] || !index[1]) return KDRT_ERROR_OUT_OF_MEMORY;
+    }
+    r = kdrt__split_refs(b, arena, refs, n, &plane, child_lo, child_hi, child, count, sides, index);
+    if (events && r == KDRT_SUCCESS) r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
+    if (r == KDRT_SUCCESS)
+        r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL, child_lo[0],
+                           child_hi[0], depth + 1);
     if (r == KDRT_SUCCESS) {
         b->nodes[node].u.split = plane.pos;
         b->nodes[node].bits = (b->node_count << 2) | (uint32_t)plane.axis;
-        r = kdrt__sah_node(b, arena, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
+        r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL, child_lo[1],
+                           child_hi[1], depth + 1);
     }
     kdrt__arena_release(arena, mark);
     return r;
@@ -1467,7 +1595,7 @@ static void kdrt__run_task(void *data, uint32_t index)
     kdrt__task *t = &top->tasks[top->largest_first[index]];
     kdrt__arena arena;
     kdrt__arena_init(&arena, t->out.allocator);
-    t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, t->lo, t->hi, t->depth);
+    t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, NULL, t->lo, t->hi, t->depth);
     kdrt__arena_free(&arena);
     kdrt__free(t->out.allocator, t->refs);
     t->refs = NULL;
@@ -1504,7 +1632,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         return KDRT_SUCCESS;
     }
     kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
-    r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count);
+    r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, NULL, NULL);
     kdrt__free(b->allocator, refs);
     if (r != KDRT_SUCCESS) {
         kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
