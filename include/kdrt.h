@@ -110,8 +110,10 @@
      KDRT_BUILDER_SAH chooses each split by the surface area heuristic (Wald & Havran 2006). A
      node with more than 128 triangles is binned: 256 equal bins per axis, the planes between
      them costed from counts of the triangles' box faces, O(n). Below that every face of every
-     triangle's box is a candidate: the start, end and planar events are sorted and swept
-     (O(n log n) per node), on the axis 8 bins find best (on all three below 17 triangles).
+     triangle's box on every axis is a candidate: the start, end and planar events are sorted
+     once where a subtree comes down to 128 triangles and kept in order from there (Wald &
+     Havran's O(n log n) build): a split renumbers the events of the triangles on one side, and
+     only the events of the triangles it cuts are made again and sorted.
      A triangle cut by the plane is clipped to each child's box (perfect splits), so it goes
      only where some of it lies. A node becomes a leaf when it holds at most max_leaf_size
      triangles, at max_depth, or when no split is cheaper than testing all its triangles (the
@@ -1013,7 +1015,7 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     return r;
 }
 
-/* ---- SAH builder: binned at large nodes, an exact sweep below, perfect splits ---- */
+/* ---- SAH builder: binned at large nodes, an exact sweep of events kept in order below, perfect splits ---- */
 
 /* A reference: the box of the part of triangle tri that lies inside its node. */
 typedef struct kdrt__ref {
@@ -1301,20 +1303,19 @@ static void kdrt__sorted_events(const kdrt__ref *refs, uint32_t n, uint64_t *eve
 }
 
 /* Binned sweep for large nodes: each axis cut into KDRT__SAH_BINS equal bins, a reference counted
-   in the bins of its two faces, and the planes between bins costed from those counts. O(n), where
-   the exact sweep is O(n log n) per node. */
+   in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
 #ifndef KDRT__SAH_BINS /* overridable only to measure the choice (README) */
-#define KDRT__SAH_BINS 256
+#define KDRT__SAH_BINS 256u
 #endif
 
 static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n, const float lo[3],
-                               const float hi[3], float inv_area, uint32_t bins, kdrt__plane *best)
+                               const float hi[3], float inv_area, kdrt__plane *best)
 {
+    const uint32_t bins = KDRT__SAH_BINS;
     uint32_t starts[3][KDRT__SAH_BINS], ends[3][KDRT__SAH_BINS], r, i;
     float scale[3];
     int k;
-    for (k = 0; k < 3; ++k) /* only the bins in use */
-        memset(starts[k], 0, bins * sizeof(uint32_t)), memset(ends[k], 0, bins * sizeof(uint32_t));
+    memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
     for (k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? (float)bins / (hi[k] - lo[k]) : 0.0f;
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
@@ -1356,7 +1357,7 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
     float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
     if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return KDRT_SUCCESS;
-    kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area, KDRT__SAH_BINS, best);
+    kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area, best);
     if (!(best->cost < leaf_cost)) {
         kdrt__mark mark = kdrt__arena_mark(arena);
         uint64_t *events[3];
