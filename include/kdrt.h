@@ -1023,14 +1023,40 @@ typedef struct kdrt__ref {
     uint32_t tri;
 } kdrt__ref;
 
-/* Box of the part of triangle tri inside box [blo, bhi] (Sutherland-Hodgman in double, rounded
-   outwards to float and kept within the box); 0 when nothing of it is inside. */
-static int kdrt__clip_triangle(const kdrt_triangles *m, uint32_t tri, const float blo[3],
-                               const float bhi[3], float lo[3], float hi[3])
+/* Box of the polygon pts[0..n), rounded outwards to float and kept within [blo, bhi]; 0 when
+   that leaves nothing. */
+static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const float bhi[3], float lo[3],
+                             float hi[3])
 {
-    double poly[2][9][3];
+    int a, j;
+    if (n == 0) return 0;
+    for (a = 0; a < 3; ++a) {
+        double l = pts[0][a], h = l;
+        for (j = 1; j < n; ++j) {
+            if (pts[j][a] < l) l = pts[j][a];
+            if (pts[j][a] > h) h = pts[j][a];
+        }
+        lo[a] = (float)l, hi[a] = (float)h;
+        if ((double)lo[a] > l) lo[a] = kdrt__next_down(lo[a]); /* round outwards */
+        if ((double)hi[a] < h) hi[a] = kdrt__next_up(hi[a]);
+        if (lo[a] < blo[a]) lo[a] = blo[a];
+        if (hi[a] > bhi[a]) hi[a] = bhi[a];
+        if (lo[a] > hi[a]) return 0;
+    }
+    return 1;
+}
+
+/* Perfect split of a triangle the plane cuts: the part of triangle tri inside the node's box
+   [child_lo[0], child_hi[1]] (Sutherland-Hodgman in double), cut by the plane into the part in
+   each child's box; their boxes go to lo[c], hi[c]. Returns bit c set when child c gets some. */
+static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis, float pos,
+                                 float child_lo[2][3], float child_hi[2][3], float lo[2][3], float hi[2][3])
+{
+    double poly[2][9][3], part[2][11][3];
+    const float *blo = child_lo[0], *bhi = child_hi[1];
     float p[3][3];
-    int n = 3, cur = 0, k, side, i, j, a;
+    int n = 3, cur = 0, k, side, i, a, count[2] = {0, 0};
+    unsigned result = 0;
     kdrt__load_triangle(m, tri, p);
     for (i = 0; i < 3; ++i)
         for (a = 0; a < 3; ++a) poly[0][i][a] = p[i][a];
@@ -1057,21 +1083,22 @@ static int kdrt__clip_triangle(const kdrt_triangles *m, uint32_t tri, const floa
             n = out;
             cur = !cur;
         }
-    if (n == 0) return 0;
-    for (a = 0; a < 3; ++a) {
-        double l = poly[cur][0][a], h = l;
-        for (j = 1; j < n; ++j) {
-            if (poly[cur][j][a] < l) l = poly[cur][j][a];
-            if (poly[cur][j][a] > h) h = poly[cur][j][a];
+    /* The cut: corners on the plane go to both parts, as do the points where edges cross it. */
+    for (i = 0; i < n; ++i) {
+        const double *s = poly[cur][i], *e = poly[cur][(i + 1) % n];
+        double ds = s[axis] - (double)pos, de = e[axis] - (double)pos;
+        if (ds <= 0.0) memcpy(part[0][count[0]++], s, sizeof part[0][0]);
+        if (ds >= 0.0) memcpy(part[1][count[1]++], s, sizeof part[0][0]);
+        if ((ds < 0.0 && de > 0.0) || (ds > 0.0 && de < 0.0)) {
+            double f = ds / (ds - de);
+            for (a = 0; a < 3; ++a) part[0][count[0]][a] = s[a] + f * (e[a] - s[a]);
+            part[0][count[0]][axis] = pos;
+            memcpy(part[1][count[1]++], part[0][count[0]++], sizeof part[0][0]);
         }
-        lo[a] = (float)l, hi[a] = (float)h;
-        if ((double)lo[a] > l) lo[a] = kdrt__next_down(lo[a]); /* round outwards */
-        if ((double)hi[a] < h) hi[a] = kdrt__next_up(hi[a]);
-        if (lo[a] < blo[a]) lo[a] = blo[a];
-        if (hi[a] > bhi[a]) hi[a] = bhi[a];
-        if (lo[a] > hi[a]) return 0;
     }
-    return 1;
+    for (i = 0; i < 2; ++i)
+        if (kdrt__polygon_box(part[i], count[i], child_lo[i], child_hi[i], lo[i], hi[i])) result |= 1u << i;
+    return result;
 }
 
 /* Scratch memory given back in stack order, as the depth-first build needs it: a list of chunks
@@ -1412,18 +1439,18 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, 
         count[c] = 0;
     }
     for (r = 0; r < n; ++r) {
-        unsigned side = kdrt__ref_side(&refs[r], plane);
+        unsigned side = kdrt__ref_side(&refs[r], plane), into = side;
+        float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
+        if (side == (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE))
+            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo, child_hi, lo, hi);
         for (c = 0; c < 2; ++c) {
             kdrt__ref *out = &child[c][count[c]];
-            uint32_t at = count[c];
-            if (!(side & (c ? KDRT__SIDE_ABOVE : KDRT__SIDE_BELOW))) {
-            } else if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) {
-                *out = refs[r], ++count[c];
-            } else if (kdrt__clip_triangle(b->mesh, refs[r].tri, child_lo[c], child_hi[c], out->lo, out->hi)) {
-                out->tri = refs[r].tri, ++count[c];
-            }
-            if (sides) index[c][r] = count[c] > at ? at : KDRT_INVALID_ID;
+            if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
+            if (!((into >> c) & 1u)) continue;
+            if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) *out = refs[r];
+            else memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi), out->tri = refs[r].tri;
+            ++count[c];
         }
     }
     return KDRT_SUCCESS;
