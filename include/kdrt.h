@@ -1506,8 +1506,9 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
             out[c].axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
             if (!out[c].axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
         }
-        /* Written on both sides and kept on one: no branch to mispredict. A reference missing
-           from a side has index KDRT_INVALID_ID there, masked to a harmless number. */
+        /* Written on both sides and kept on one: no branch to mispredict (each array has a slot
+           to spare for the write past its last kept event). A reference missing from a side
+           has index KDRT_INVALID_ID there, masked to a harmless number. */
         for (i = 0; i < events->count[k]; ++i) {
             uint64_t e = events->axis[k][i], at = e & ~(uint64_t)KDRT__EVENT_REF_MASK;
             uint32_t ref = (uint32_t)e & KDRT__EVENT_REF_MASK;
