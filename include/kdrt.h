@@ -1015,7 +1015,7 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     return r;
 }
 
-/* ---- SAH builder: binned at large nodes, an exact sweep of events kept in order below, perfect splits ---- */
+/* ---- SAH builder: binned large nodes, events kept in order below, perfect splits ---- */
 
 /* A reference: the box of the part of triangle tri that lies inside its node. */
 typedef struct kdrt__ref {
@@ -1363,8 +1363,8 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
     }
 }
 
-/* Nodes with more references than this are binned; below it every candidate is tried, with the
-   events kept sorted (kdrt__exact_node). */
+/* Nodes with more references than this are binned; below it every candidate is tried, from
+   events kept sorted (kdrt__events). */
 #ifndef KDRT__SAH_EXACT_MAX /* overridable only to measure the choice (README) */
 #define KDRT__SAH_EXACT_MAX 128u
 #endif
@@ -1372,37 +1372,6 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
 static float kdrt__half_area(const float lo[3], const float hi[3])
 {
     return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) + (hi[2] - lo[2]) * (hi[0] - lo[0]);
-}
-
-/* The split of a binned node, or axis -1 for a leaf: at max_depth, or no plane cheaper than
-   testing all n (cost-based termination). Where the bins find nothing worth a split, every
-   candidate is tried before the node is made a leaf. */
-static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
-                                      uint32_t n, const float lo[3], const float hi[3], uint32_t depth,
-                                      kdrt__plane *best)
-{
-    float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
-    best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
-    if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return KDRT_SUCCESS;
-    kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area, best);
-    if (!(best->cost < leaf_cost)) {
-        kdrt__mark mark = kdrt__arena_mark(arena);
-        uint64_t *events[3];
-        size_t count[3];
-        int k;
-        for (k = 0; k < 3; ++k) {
-            events[k] = (uint64_t *)kdrt__arena_alloc(arena, 2 * (size_t)n * sizeof(uint64_t));
-            if (!events[k]) return KDRT_ERROR_OUT_OF_MEMORY;
-        }
-        kdrt__sorted_events(refs, n, events, count);
-        for (k = 0; k < 3; ++k) {
-            kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, 1.0f / area);
-            kdrt__sweep(&cost, events[k], count[k], n, best);
-        }
-        kdrt__arena_release(arena, mark);
-    }
-    if (!(best->cost < leaf_cost)) best->axis = -1;
-    return KDRT_SUCCESS;
 }
 
 /* Which side of the plane a reference lies on: KDRT__SIDE_BELOW, _ABOVE, or both when the plane
@@ -1417,8 +1386,8 @@ static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 }
 
 /* The children's references, in arrays from alloc (the arena, or the allocator at the top of a
-   parallel build): a reference on one side is copied, one the plane cuts is clipped again to each
-   child's box (perfect splits) and goes only where some of the triangle lies. When sides is not
+   parallel build): a reference on one side is copied, one the plane cuts is split by
+   kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When sides is not
    NULL it gets each reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
 static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
                                     uint32_t n, const kdrt__plane *plane, float child_lo[2][3],
@@ -1465,27 +1434,55 @@ static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__
 }
 
 /* Below KDRT__SAH_EXACT_MAX references every candidate plane is tried, from each axis's events
-kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
-split in order at every node, so that a node costs O(n) and only the events of the references its
-plane cuts are made and sorted again. */
+   kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
+   split in order at every node, so that a node costs O(n) and only the events of the references
+   its plane cuts are made and sorted again. */
 typedef struct kdrt__events {
     uint64_t *axis[3];
     size_t count[3];
 } kdrt__events;
 
-/* The exact region's split, or axis -1 for a leaf (as kdrt__choose_plane). */
-static void kdrt__exact_choose(const kdrt__builder *b, const kdrt__events *events, uint32_t n,
-                               const float lo[3], const float hi[3], uint32_t depth, kdrt__plane *best)
+/* Every candidate on the three axes, from a node's sorted events. */
+static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n, const float lo[3],
+                             const float hi[3], float inv_area, kdrt__plane *best)
 {
-    float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
     int k;
-    best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
-    if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return;
     for (k = 0; k < 3; ++k) {
-        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, 1.0f / area);
+        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
         kdrt__sweep(&cost, events->axis[k], events->count[k], n, best);
     }
+}
+
+/* The node's split, or axis -1 for a leaf: at most max_leaf_size triangles, at max_depth, or no
+   plane cheaper than testing all n (cost-based termination). With events (the exact region) every
+   candidate is tried; without, the bins choose, and where they find nothing worth a split every
+   candidate is tried before the node is made a leaf. */
+static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
+                                      uint32_t n, const kdrt__events *events, const float lo[3],
+                                      const float hi[3], uint32_t depth, kdrt__plane *best)
+{
+    float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
+    best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
+    if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return KDRT_SUCCESS;
+    if (events) {
+        kdrt__sweep_axes(b, events, n, lo, hi, 1.0f / area, best);
+    } else {
+        kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area, best);
+        if (!(best->cost < leaf_cost)) {
+            kdrt__mark mark = kdrt__arena_mark(arena);
+            kdrt__events all;
+            int k;
+            for (k = 0; k < 3; ++k) {
+                all.axis[k] = (uint64_t *)kdrt__arena_alloc(arena, 2 * (size_t)n * sizeof(uint64_t));
+                if (!all.axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
+            }
+            kdrt__sorted_events(refs, n, all.axis, all.count);
+            kdrt__sweep_axes(b, &all, n, lo, hi, 1.0f / area, best);
+            kdrt__arena_release(arena, mark);
+        }
+    }
     if (!(best->cost < leaf_cost)) best->axis = -1;
+    return KDRT_SUCCESS;
 }
 
 /* The children's events, still in order: the node's events of the references wholly on one
@@ -1563,8 +1560,8 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
                       sizeof(kdrt__node));
     if (r != KDRT_SUCCESS) return r;
     node = b->node_count++;
-    if (events) kdrt__exact_choose(b, events, n, lo, hi, depth, &plane);
-    else if ((r = kdrt__choose_plane(b, arena, refs, n, lo, hi, depth, &plane)) != KDRT_SUCCESS) return r;
+    r = kdrt__choose_plane(b, arena, refs, n, events, lo, hi, depth, &plane);
+    if (r != KDRT_SUCCESS) return r;
     if (plane.axis < 0) {
         uint32_t *tris = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
         if (!tris) return KDRT_ERROR_OUT_OF_MEMORY;
@@ -1644,7 +1641,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
     plane.axis = -1;
     if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH) {
         kdrt__arena_init(&arena, b->allocator);
-        r = kdrt__choose_plane(b, &arena, refs, n, lo, hi, depth, &plane);
+        r = kdrt__choose_plane(b, &arena, refs, n, NULL, lo, hi, depth, &plane);
         kdrt__arena_free(&arena);
         if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
     }
