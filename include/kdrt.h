@@ -639,7 +639,7 @@ static void kdrt__triangle_indices(const kdrt_triangles *m, uint32_t tri, uint32
 {
     int k;
     for (k = 0; k < 3; ++k)
-        idx[k] = m->indices ? m->indices[(size_t)tri * 3 + k] : tri * 3u + (uint32_t)k;
+        idx[k] = m->indices ? m->indices[(size_t)tri * 3 + (size_t)k] : tri * 3u + (uint32_t)k;
 }
 
 /* memcpy, because a caller's byte stride may leave the floats unaligned. */
@@ -954,7 +954,7 @@ static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, i
     uint32_t i, nb = 0, na = 0;
     for (i = 0; i < n; ++i) {
         uint32_t t = tris[i];
-        float lo = b->lo[3 * t + axis], hi = b->hi[3 * t + axis];
+        float lo = b->lo[3 * t + (uint32_t)axis], hi = b->hi[3 * t + (uint32_t)axis];
         unsigned char side = 0;
         if (lo < split || hi <= split) side |= KDRT__SIDE_BELOW; /* planar-in-plane goes below */
         if (hi > split) side |= KDRT__SIDE_ABOVE;
@@ -985,7 +985,7 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
 
     for (attempt = 0; attempt < 3; ++attempt) {
         axis = (int)((depth + attempt) % 3u);
-        split = b->centroid[3 * lists[(size_t)axis * n + n / 2] + axis];
+        split = b->centroid[3 * lists[(size_t)axis * n + n / 2] + (uint32_t)axis];
         kdrt__classify(b, lists + (size_t)axis * n, n, axis, split, &nb, &na);
         if (nb < n && na < n) break;
     }
@@ -2020,7 +2020,7 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
         keys = (kdrt__key *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__key));
         if (!lists || !keys) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
         for (a = 0; a < 3; ++a) {
-            for (i = 0; i < n; ++i) keys[i].key = b.centroid[3 * (size_t)valid[i] + a], keys[i].tri = valid[i];
+            for (i = 0; i < n; ++i) keys[i].key = b.centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
             qsort(keys, n, sizeof *keys, kdrt__key_less);
             for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
         }
