@@ -1494,9 +1494,16 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
 {
     const unsigned cut = KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
     uint64_t *fresh = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
-    uint32_t r, c;
+    uint32_t *cut_refs[2], cuts[2] = {0, 0}, r, c;
     int k;
-    if (!fresh) return KDRT_ERROR_OUT_OF_MEMORY;
+    cut_refs[0] = (uint32_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint32_t));
+    if (!fresh || !cut_refs[0]) return KDRT_ERROR_OUT_OF_MEMORY;
+    /* Each child's index of every reference the plane cut that went to it, gathered once
+       rather than per axis. */
+    cut_refs[1] = cut_refs[0] + n;
+    for (r = 0; r < n; ++r)
+        for (c = 0; c < 2; ++c)
+            if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID) cut_refs[c][cuts[c]++] = index[c][r];
     for (k = 0; k < 3; ++k) {
         size_t i, kept[2] = {0, 0};
         for (c = 0; c < 2; ++c) {
@@ -1517,9 +1524,8 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
         for (c = 0; c < 2; ++c) {
             uint64_t *o = out[c].axis[k];
             size_t made = 0, w;
-            for (r = 0; r < n; ++r)
-                if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID)
-                    made += kdrt__push_events(&child[c][index[c][r]], index[c][r], k, fresh + made);
+            for (r = 0; r < cuts[c]; ++r)
+                made += kdrt__push_events(&child[c][cut_refs[c][r]], cut_refs[c][r], k, fresh + made);
             kdrt__sort_keys(fresh, made);
             out[c].count[k] = kept[c] + made;
             for (i = kept[c], w = kept[c] + made; made > 0;) /* merge from the back, in place */
