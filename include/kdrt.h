@@ -114,8 +114,8 @@
      once where a subtree comes down to 128 triangles and kept in order from there (Wald &
      Havran's O(n log n) build): a split renumbers the events of the triangles on one side, and
      only the events of the triangles it cuts are made again and sorted.
-     A triangle cut by the plane is clipped to each child's box (perfect splits), so it goes
-     only where some of it lies. A node becomes a leaf when it holds at most max_leaf_size
+     A triangle cut by the plane is clipped to the node's box and that polygon split by the
+     plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when it holds at most max_leaf_size
      triangles, at max_depth, or when no split is cheaper than testing all its triangles (the
      costs are options). It builds slower than the median and traces several times faster:
      it is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
@@ -1354,8 +1354,9 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
         }
     for (k = 0; k < 3; ++k) {
         uint32_t below = 0, ended = 0;
-        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
+        kdrt__axis_cost cost;
         if (scale[k] == 0.0f) continue;
+        cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
         for (i = 1; i < bins; ++i) {
             below += starts[k][i - 1], ended += ends[k][i - 1];
             kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below, 0, n - ended);
