@@ -115,9 +115,9 @@
      Havran's O(n log n) build): a split renumbers the events of the triangles on one side, and
      only the events of the triangles it cuts are made again and sorted.
      A triangle cut by the plane is clipped to the node's box and that polygon split by the
-     plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when it holds at most max_leaf_size
-     triangles, at max_depth, or when no split is cheaper than testing all its triangles (the
-     costs are options). It builds slower than the median and traces several times faster:
+     plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when
+     it holds at most max_leaf_size triangles, at max_depth, or when no split is cheaper than
+     testing all its triangles (the costs are options). It builds slower than the median and traces several times faster:
      it is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread; the subtrees below are independent tasks handed to
@@ -1317,16 +1317,29 @@ static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, siz
     }
 }
 
-/* Sorts each axis's events of refs[0..n) into events[k] (room for 2n each); returns the counts. */
-static void kdrt__sorted_events(const kdrt__ref *refs, uint32_t n, uint64_t *events[3], size_t count[3])
+/* Below KDRT__SAH_EXACT_MAX references every candidate plane is tried, from each axis's events
+   kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
+   split in order at every node, so that a node costs O(n) and only the events of the references
+   its plane cuts are made and sorted again. */
+typedef struct kdrt__events {
+    uint64_t *axis[3];
+    size_t count[3];
+} kdrt__events;
+
+/* Each axis's events of refs[0..n), sorted, in arrays from the arena (room for 2n + 1 each: the
+   spare slot is kdrt__child_events'). */
+static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs, uint32_t n, kdrt__events *out)
 {
     uint32_t r;
     int k;
     for (k = 0; k < 3; ++k) {
-        count[k] = 0;
-        for (r = 0; r < n; ++r) count[k] += kdrt__push_events(&refs[r], r, k, events[k] + count[k]);
-        kdrt__sort_keys(events[k], count[k]);
+        out->axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
+        if (!out->axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
+        out->count[k] = 0;
+        for (r = 0; r < n; ++r) out->count[k] += kdrt__push_events(&refs[r], r, k, out->axis[k] + out->count[k]);
+        kdrt__sort_keys(out->axis[k], out->count[k]);
     }
+    return KDRT_SUCCESS;
 }
 
 /* Binned sweep for large nodes: each axis cut into KDRT__SAH_BINS equal bins, a reference counted
@@ -1434,15 +1447,6 @@ static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__
     child_hi[0][plane->axis] = plane->pos, child_lo[1][plane->axis] = plane->pos;
 }
 
-/* Below KDRT__SAH_EXACT_MAX references every candidate plane is tried, from each axis's events
-   kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
-   split in order at every node, so that a node costs O(n) and only the events of the references
-   its plane cuts are made and sorted again. */
-typedef struct kdrt__events {
-    uint64_t *axis[3];
-    size_t count[3];
-} kdrt__events;
-
 /* Every candidate on the three axes, from a node's sorted events. */
 static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n, const float lo[3],
                              const float hi[3], float inv_area, kdrt__plane *best)
@@ -1472,12 +1476,7 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         if (!(best->cost < leaf_cost)) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
-            int k;
-            for (k = 0; k < 3; ++k) {
-                all.axis[k] = (uint64_t *)kdrt__arena_alloc(arena, 2 * (size_t)n * sizeof(uint64_t));
-                if (!all.axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
-            }
-            kdrt__sorted_events(refs, n, all.axis, all.count);
+            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS) return KDRT_ERROR_OUT_OF_MEMORY;
             kdrt__sweep_axes(b, &all, n, lo, hi, 1.0f / area, best);
             kdrt__arena_release(arena, mark);
         }
@@ -1551,15 +1550,11 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
     kdrt_result r;
-    int k;
 
     if (!events && n <= KDRT__SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
         /* Down to the exact region: each axis's events sorted, once for the whole subtree. */
-        for (k = 0; k < 3; ++k) {
-            entry.axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
-            if (!entry.axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
-        }
-        kdrt__sorted_events(refs, n, entry.axis, entry.count);
+        r = kdrt__sorted_events(arena, refs, n, &entry);
+        if (r != KDRT_SUCCESS) return r;
         events = &entry;
     }
     if (b->node_count >= KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
