@@ -1,6 +1,7 @@
 #include "bench.hpp"
-#include "parse.hpp"
-#include "timing.hpp"
+#include "common/parse.hpp"
+#include "common/random.hpp"
+#include "common/timing.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -13,20 +14,13 @@
 
 namespace kb {
 
+using common::timed_parallel;
+
 namespace {
 
-// Same splitmix64 stream on every platform, so ray sets and samples are reproducible.
-struct Rng {
-    uint64_t state;
-    explicit Rng(uint32_t seed) : state(0x243F6A8885A308D3ull ^ (uint64_t(seed) * 0x9E3779B97F4A7C15ull)) {}
-    uint64_t next() {
-        uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }
-};
+// The ray sets' and samples' random stream, seeded as the bench has always seeded it, so a
+// seed gives the rays of the CSVs in bench/results.
+common::Rng seeded(uint32_t seed) { return common::Rng::from_state(0x243F6A8885A308D3ull ^ (uint64_t(seed) * 0x9E3779B97F4A7C15ull)); }
 
 // "KT:KI:EB,KT:KI:EB,...": K_T and K_I finite and above 0, EB in (0, 1). kdrt reads a zero cost
 // or bonus as "use the default", so 0 is refused rather than silently replaced.
@@ -224,7 +218,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--hard-rays") {
             if (!value(v)) return false;
-            if (!kt::parse_count(v, 1ull << 32, n) || n == 0) {
+            if (!common::parse_count(v, 1ull << 32, n) || n == 0) {
                 error = "--hard-rays wants a whole number from 1, got '" + v + "'";
                 return false;
             }
@@ -233,14 +227,14 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         } else if (arg == "--size") {
             if (!value(v)) return false;
             unsigned long long w = 0, h = 0;
-            if (!kt::parse_size(v, 32768, w, h)) {
+            if (!common::parse_size(v, 32768, w, h)) {
                 error = "--size wants WxH with 1 <= W, H <= 32768, got '" + v + "'";
                 return false;
             }
             out.width = unsigned(w), out.height = unsigned(h);
         } else if (arg == "--build-threads") {
             if (!value(v)) return false;
-            if (!kt::parse_count(v, 1024, n)) {
+            if (!common::parse_count(v, 1024, n)) {
                 error = "--build-threads wants a whole number from 0 (all cores) to 1024, got '" + v + "'";
                 return false;
             }
@@ -248,7 +242,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         } else if (arg == "--threads" || arg == "--repeat" || arg == "--subdivide") {
             if (!value(v)) return false;
             unsigned long long max = arg == "--subdivide" ? 8 : 1024;
-            if (!kt::parse_count(v, max, n) || (arg != "--subdivide" && n == 0)) {
+            if (!common::parse_count(v, max, n) || (arg != "--subdivide" && n == 0)) {
                 error = arg + " wants a whole number " + (arg == "--subdivide" ? "from 0" : "from 1") + " to " +
                         std::to_string(max) + ", got '" + v + "'";
                 return false;
@@ -256,7 +250,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             (arg == "--threads" ? out.threads : arg == "--repeat" ? out.repeat : out.subdivide) = unsigned(n);
         } else if (arg == "--reference-rays") {
             if (!value(v)) return false;
-            if (!kt::parse_count(v, 1ull << 40, n)) {
+            if (!common::parse_count(v, 1ull << 40, n)) {
                 error = "--reference-rays wants a whole number, got '" + v + "'";
                 return false;
             }
@@ -268,7 +262,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             while (start <= v.size()) {
                 size_t comma = v.find(',', start);
                 std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-                if (!kt::parse_count(item, KDRT_MAX_TRIANGLES, n)) {
+                if (!common::parse_count(item, KDRT_MAX_TRIANGLES, n)) {
                     error = "--leaf-sizes wants whole numbers separated by commas, got '" + v + "'";
                     return false;
                 }
@@ -339,7 +333,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     return true;
 }
 
-Scene make_scene(const kt::Mesh &mesh, const std::string &name) {
+Scene make_scene(const common::Mesh &mesh, const std::string &name) {
     Scene s;
     s.name = name;
     s.mesh_triangles = mesh.triangle_count();
@@ -380,7 +374,7 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
         double c[3], e[3], radius = 0;
         for (int a = 0; a < 3; ++a) c[a] = 0.5 * (box.min[a] + box.max[a]), e[a] = box.max[a] - box.min[a], radius += 0.25 * e[a] * e[a];
         radius = std::sqrt(radius);
-        Rng rng(seed);
+        common::Rng rng = seeded(seed);
         rays.resize(size_t(width) * height);
         for (kdrt_ray &r : rays) {
             double z = 2 * rng.uniform() - 1, phi = 2 * M_PI * rng.uniform(), s = std::sqrt(std::max(0.0, 1 - z * z));
@@ -411,7 +405,7 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
     // Diffuse: a cosine-distributed bounce from every primary hit, on the side the ray came from,
     // leaving the surface through kdrt_spawn_ray() (no epsilon: the offset scales with the point).
     std::vector<kdrt_ray> bounces;
-    Rng rng(seed);
+    common::Rng rng = seeded(seed);
     for (const kdrt_ray &r : rays) {
         kdrt_hit h;
         float normal[3];
@@ -435,18 +429,18 @@ std::vector<size_t> reference_sample(size_t total, size_t count, uint32_t seed) 
     std::vector<size_t> all(total);
     std::iota(all.begin(), all.end(), size_t(0));
     if (count == 0 || count >= total) return all;
-    Rng rng(seed);
+    common::Rng rng = seeded(seed);
     for (size_t i = 0; i < count; ++i) std::swap(all[i], all[i + size_t(rng.uniform() * double(total - i))]);  // partial Fisher-Yates
     all.resize(count);
     std::sort(all.begin(), all.end());
     return all;
 }
 
-size_t count_mismatches(const kt::Oracle &oracle, const std::vector<kt::Reference> &refs,
+size_t count_mismatches(const oracle::Oracle &oracle, const std::vector<oracle::Reference> &refs,
                         const std::vector<size_t> &sample, const std::vector<kdrt_ray> &rays,
                         const std::vector<kdrt_hit> &hits) {
-    kt::Agreement tally;
-    for (size_t k = 0; k < sample.size(); ++k) kt::check_hit(oracle, refs[k], rays[sample[k]], hits[sample[k]], tally);
+    oracle::Agreement tally;
+    for (size_t k = 0; k < sample.size(); ++k) oracle::check_hit(oracle, refs[k], rays[sample[k]], hits[sample[k]], tally);
     return tally.wrong;
 }
 
@@ -484,7 +478,7 @@ std::string csv_row(const Row &row) {
 
 namespace {
 
-kdrt_tree *build_tree(const kt::Mesh &mesh, kdrt_intersector intersector, std::string &error) {
+kdrt_tree *build_tree(const common::Mesh &mesh, kdrt_intersector intersector, std::string &error) {
     const kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
     options.builder = KDRT_BUILDER_MEDIAN;  // README's accuracy table: a median tree
@@ -533,7 +527,7 @@ AccuracySet far_set(const Scene &scene, double offset, unsigned width, unsigned 
     s.set = "far";
     s.scene = scene.name + "@" + offset_label(offset);
     const double scale = std::max(1.0, offset / 1000.0);
-    s.mesh = kt::translated(scene.geometry, offset, scale);
+    s.mesh = oracle::translated(scene.geometry, offset, scale);
     s.mesh.name = s.scene;
     s.rays = make_rays(scene, RayKind::primary, width, height, nullptr, seed);
     // The camera moves with the scene: p -> scale p + shift, the shift read off the last vertex
@@ -549,11 +543,11 @@ AccuracySet far_set(const Scene &scene, double offset, unsigned width, unsigned 
 
 std::vector<AccuracySet> watertight_sets(size_t rays, uint64_t seed) {
     std::vector<AccuracySet> sets;
-    for (kt::Mesh &mesh : kt::closed_meshes(true)) {
+    for (common::Mesh &mesh : oracle::closed_meshes(true)) {
         AccuracySet s;
         s.set = "watertight";
         s.scene = mesh.name;
-        s.rays = kt::rays_at_vertices_and_edges(mesh, rays, seed);
+        s.rays = oracle::rays_at_vertices_and_edges(mesh, rays, seed);
         s.mesh = std::move(mesh);
         s.must_hit = true;
         sets.push_back(std::move(s));
@@ -563,7 +557,7 @@ std::vector<AccuracySet> watertight_sets(size_t rays, uint64_t seed) {
 
 std::vector<AccuracySet> hard_case_sets(size_t rays, uint64_t seed) {
     std::vector<AccuracySet> sets;
-    for (kt::HardSet &h : kt::hard_sets(rays, seed)) {
+    for (oracle::HardSet &h : oracle::hard_sets(rays, seed)) {
         AccuracySet s;
         s.set = "hard";
         s.scene = h.name;
@@ -577,7 +571,7 @@ std::vector<AccuracySet> hard_case_sets(size_t rays, uint64_t seed) {
 bool run_accuracy_set(const AccuracySet &set, const std::vector<kdrt_intersector> &intersectors, size_t reference_rays,
                       unsigned threads, unsigned timed_passes, uint32_t seed, bool oracle_row, std::vector<AccuracyRow> &rows,
                       std::string &error) {
-    const kt::Oracle oracle(set.mesh);
+    const oracle::Oracle oracle(set.mesh);
     const std::vector<size_t> sample = reference_sample(set.rays.size(), reference_rays, seed);
     std::vector<kdrt_ray> sampled;
     for (size_t i : sample) sampled.push_back(set.rays[i]);
@@ -586,7 +580,7 @@ bool run_accuracy_set(const AccuracySet &set, const std::vector<kdrt_intersector
     base.scene = set.scene;
     base.triangles = set.mesh.triangle_count();
 
-    std::vector<kt::Reference> refs;
+    std::vector<oracle::Reference> refs;
     if (oracle_row) {
         // The reference is computed anyway; on one thread, its time is the oracle's row.
         AccuracyRow row = base;
@@ -597,7 +591,7 @@ bool run_accuracy_set(const AccuracySet &set, const std::vector<kdrt_intersector
         row.trace_ms = timed_parallel(sampled.size(), 1, [&](size_t i) { refs[i] = oracle.trace(sampled[i]); });
         rows.push_back(row);
     } else {
-        refs = kt::reference_all(oracle, sampled);
+        refs = oracle::reference_all(oracle, sampled);
     }
 
     // One tree per intersector, timed in turns (fast, watertight, fast, ...) so that a busy
@@ -627,21 +621,21 @@ bool run_accuracy_set(const AccuracySet &set, const std::vector<kdrt_intersector
         row.counts_leaks = set.must_hit;
         std::string first;  // the first error found, for the run's log
         if (set.must_hit) {
-            const kt::ErrorCounts leaked = kt::count_leaks(trees[m], set.rays);
+            const oracle::ErrorCounts leaked = oracle::count_leaks(trees[m], set.rays);
             row.errors.leaks = leaked.leaks;
             first = leaked.first;
         }
-        const kt::ErrorCounts checked = kt::count_mismatches(trees[m], oracle, refs, sampled);
+        const oracle::ErrorCounts checked = oracle::count_mismatches(trees[m], oracle, refs, sampled);
         row.errors.false_hits = checked.false_hits;
         row.errors.mismatches = checked.mismatches;
         row.reference_rays = sample.size();
         if (first.empty()) first = checked.first;
         // Secondary rays from the sample's hits: 4 per hit, traced twice (spawned and naive).
-        const kt::ErrorCounts spawned = kt::count_self_hits(trees[m], sampled);
+        const oracle::ErrorCounts spawned = oracle::count_self_hits(trees[m], sampled);
         row.errors.self_hits = spawned.self_hits;
         row.spawned_rays = spawned.rays;
         if (first.empty()) first = spawned.first;
-        row.naive_self_hits = kt::count_self_hits(trees[m], sampled, kt::Spawn::naive).self_hits;
+        row.naive_self_hits = oracle::count_self_hits(trees[m], sampled, oracle::Spawn::naive).self_hits;
         row.errors.rays = row.rays;
         row.errors.first = first;
         rows.push_back(row);
@@ -662,7 +656,7 @@ std::string accuracy_csv_row(const AccuracyRow &row) {
                           row.trace_ms, mrays);
     std::string line = row.set + ";" + row.scene + std::string(buf, size_t(n));
     if (!row.measured) return line + ";;;;;;";  // the oracle is the reference: nothing to count
-    const kt::ErrorCounts &e = row.errors;
+    const oracle::ErrorCounts &e = row.errors;
     line += row.counts_leaks ? std::to_string(e.leaks) : "";  // only must-hit sets can leak
     n = std::snprintf(buf, sizeof buf, ";%zu;%zu;%zu;%zu;%zu;%zu", e.false_hits, e.self_hits, e.mismatches,
                       row.spawned_rays, row.reference_rays, row.naive_self_hits);

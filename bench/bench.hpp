@@ -2,10 +2,10 @@
 // stop rule, the benchmark scene and its rays, the CSV rows, and the --accuracy sets and rows.
 #pragma once
 
-#include "hard_cases.hpp"
+#include "oracle/hard_cases.hpp"
 #include "kdrt.h"
-#include "mesh_io.hpp"
-#include "reference.hpp"
+#include "common/mesh_io.hpp"
+#include "oracle/reference.hpp"
 
 #include <cstdint>
 #include <string>
@@ -75,12 +75,12 @@ std::string usage();
 // on +z looking down -z whose view just holds [-1.05, 1.05] at z = 0.
 struct Scene {
     std::string name;                  // upper-cased file stem: NEFERTITI, UNIT_SPHERE_N, ...
-    kt::Mesh geometry;                 // mesh + wall, what the tree is built over
+    common::Mesh geometry;                 // mesh + wall, what the tree is built over
     uint32_t mesh_triangles = 0;       // the mesh alone (the stop rule counts these)
     float eye[3] = {0, 0, 0};
     float tan_half_fov = 0;
 };
-Scene make_scene(const kt::Mesh &mesh, const std::string &name);
+Scene make_scene(const common::Mesh &mesh, const std::string &name);
 
 // One ray per pixel centre (row-major), or the bounces or random rays built from them.
 // tree is used for the diffuse rays' primary hits.
@@ -91,10 +91,10 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
 // or at least total).
 std::vector<size_t> reference_sample(size_t total, size_t count, uint32_t seed);
 
-// Rays of the sample whose answer contradicts the reference (kt::check_hit's "wrong"): a miss
+// Rays of the sample whose answer contradicts the reference (oracle::check_hit's "wrong"): a miss
 // where a triangle is surely hit, a hit the ray cannot make, a t off the reference's, or a
 // farther triangle where a nearer one is surely hit. refs[k] belongs to rays[sample[k]].
-size_t count_mismatches(const kt::Oracle &oracle, const std::vector<kt::Reference> &refs,
+size_t count_mismatches(const oracle::Oracle &oracle, const std::vector<oracle::Reference> &refs,
                         const std::vector<size_t> &sample, const std::vector<kdrt_ray> &rays,
                         const std::vector<kdrt_hit> &hits);
 
@@ -121,7 +121,7 @@ std::string csv_row(const Row &row);
 struct AccuracySet {
     std::string set;              // Set column: frame-primary, frame-diffuse, watertight, hard, far
     std::string scene;            // Scene column: the mesh, hard case, or moved mesh
-    kt::Mesh mesh;
+    common::Mesh mesh;
     std::vector<kdrt_ray> rays;
     bool must_hit = false;        // every ray crosses the surface: a miss is a leak
 };
@@ -131,11 +131,11 @@ struct AccuracySet {
 // a default (watertight) tree so every intersector traces the very same rays.
 std::vector<AccuracySet> frame_sets(const Scene &scene, unsigned width, unsigned height, uint32_t seed);
 // The frame's primary rays with the scene and the camera moved by `offset` along (1, 1, 1)
-// (kt::translated), and scaled by max(1, offset / 1000), so the scene spans about as many float
+// (oracle::translated), and scaled by max(1, offset / 1000), so the scene spans about as many float
 // steps at each offset (20,000 to 33,000) and its triangles stay triangles ("far").
 AccuracySet far_set(const Scene &scene, double offset, unsigned width, unsigned height, uint32_t seed);
-// kt::closed_meshes(true) with kt::rays_at_vertices_and_edges() ("watertight", must hit), and
-// kt::hard_sets() ("hard"), `rays` rays each.
+// oracle::closed_meshes(true) with oracle::rays_at_vertices_and_edges() ("watertight", must hit), and
+// oracle::hard_sets() ("hard"), `rays` rays each.
 std::vector<AccuracySet> watertight_sets(size_t rays, uint64_t seed);
 std::vector<AccuracySet> hard_case_sets(size_t rays, uint64_t seed);
 
@@ -147,9 +147,9 @@ struct AccuracyRow {
     double trace_ms = 0;
     bool measured = true;         // false on oracle rows: it is the reference, no errors counted
     bool counts_leaks = false;    // only must-hit sets can leak
-    kt::ErrorCounts errors;       // leaks, false hits, self-hits, mismatches; first: the first error
+    oracle::ErrorCounts errors;       // leaks, false hits, self-hits, mismatches; first: the first error
     size_t reference_rays = 0;    // the sample: rays compared with the oracle, and spawned from
-    size_t spawned_rays = 0;      // secondary rays kt::count_self_hits() spawned from the sample
+    size_t spawned_rays = 0;      // secondary rays oracle::count_self_hits() spawned from the sample
     size_t naive_self_hits = 0;   // self-hits of the same rays started at the hit, no offset
 };
 std::string accuracy_csv_header();
@@ -157,9 +157,9 @@ std::string accuracy_csv_row(const AccuracyRow &row);
 
 // Traces one set with each intersector (a default-leaf-size median tree each, on `threads`
 // threads, timed_passes passes taking turns, the fastest kept) and counts its errors: leaks over
-// all rays (must-hit sets, kt::count_leaks); on a seeded sample of `reference_rays` rays (0: all),
-// false hits and mismatches against the double-precision oracle (kt::count_mismatches) and the
-// self-hits of the secondary rays kt::count_self_hits() spawns from the sample's hits, with
+// all rays (must-hit sets, oracle::count_leaks); on a seeded sample of `reference_rays` rays (0: all),
+// false hits and mismatches against the double-precision oracle (oracle::count_mismatches) and the
+// self-hits of the secondary rays oracle::count_self_hits() spawns from the sample's hits, with
 // kdrt_spawn_ray and, for comparison, with no offset. With oracle_row, a first row times the
 // oracle itself (brute force in double precision, one thread, over the sample). Appends a row per
 // intersector; false with a message when a build fails.

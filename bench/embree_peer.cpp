@@ -1,5 +1,5 @@
 #include "embree_peer.hpp"
-#include "timing.hpp"
+#include "common/timing.hpp"
 
 #ifdef KDRT_BENCH_HAVE_EMBREE
 #include <embree3/rtcore.h>
@@ -12,7 +12,7 @@ namespace kb {
 
 bool embree_available() { return false; }
 
-bool embree_run(const kt::Mesh &, const std::vector<kdrt_ray> &, unsigned, PeerRun &, std::string &error) {
+bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, PeerRun &, std::string &error) {
     error = "this kdrt-bench was built without Embree (install libembree-dev and configure again)";
     return false;
 }
@@ -21,7 +21,7 @@ bool embree_run(const kt::Mesh &, const std::vector<kdrt_ray> &, unsigned, PeerR
 
 bool embree_available() { return true; }
 
-bool embree_run(const kt::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
+bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
                 std::string &error) {
     RTCDevice device = rtcNewDevice("threads=1");  // its build on one thread, like kdrt's
     if (!device) {
@@ -50,7 +50,7 @@ bool embree_run(const kt::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigne
     rtcAttachGeometry(scene, geometry);
     rtcReleaseGeometry(geometry);
 
-    Stopwatch build_clock;
+    common::Stopwatch build_clock;
     rtcCommitScene(scene);
     out.build_ms = build_clock.ms();
     if (rtcGetDeviceError(device) != RTC_ERROR_NONE) {
@@ -61,7 +61,7 @@ bool embree_run(const kt::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigne
     }
 
     out.hits.assign(rays.size(), kdrt_hit{});
-    out.trace_ms = timed_parallel(rays.size(), threads, [&](size_t i) {
+    out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
         const kdrt_ray &r = rays[i];
         RTCIntersectContext context;
         rtcInitIntersectContext(&context);

@@ -3,7 +3,7 @@
 #pragma once
 
 #include "kdrt.h"
-#include "mesh_io.hpp"
+#include "common/mesh_io.hpp"
 
 #include <string>
 #include <vector>
@@ -18,7 +18,7 @@ struct PeerRun {
 bool embree_available();
 // Builds at RTC_BUILD_QUALITY_MEDIUM on one thread, then traces with rtcIntersect1 on `threads`
 // threads. false with a message if Embree fails.
-bool embree_run(const kt::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
+bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
                 std::string &error);
 
 }  // namespace kb

@@ -6,9 +6,9 @@
 
 #include "bench.hpp"
 #include "embree_peer.hpp"
-#include "reference.hpp"
-#include "thread_scheduler.hpp"
-#include "timing.hpp"
+#include "oracle/reference.hpp"
+#include "common/thread_scheduler.hpp"
+#include "common/timing.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -30,7 +30,7 @@ namespace fs = std::filesystem;
 
 struct Input {
     std::string label;  // CSV Mesh column
-    kt::Mesh mesh;
+    common::Mesh mesh;
 };
 
 std::string upper_stem(const std::string &path) {
@@ -67,9 +67,9 @@ std::vector<std::string> expand_inputs(const std::vector<std::string> &args) {
 std::vector<Input> generated_inputs() {
     std::vector<Input> inputs(2);
     inputs[0].label = "GENERATED_SPHERE";
-    inputs[0].mesh = kt::uv_sphere(48, 96, 1.0, false);
+    inputs[0].mesh = oracle::uv_sphere(48, 96, 1.0, false);
     inputs[1].label = "GENERATED_TORUS";
-    inputs[1].mesh = kt::torus(96, 48, 1.0, 0.4);
+    inputs[1].mesh = common::torus(96, 48, 1.0, 0.4);
     return inputs;
 }
 
@@ -77,7 +77,7 @@ std::vector<Input> generated_inputs() {
 struct Progress {
     size_t total = 0, done = 0;
     bool terminal = isatty(STDERR_FILENO) != 0;
-    kb::Stopwatch clock;
+    common::Stopwatch clock;
     void step(const std::string &what) {
         ++done;
         if (!terminal) return;
@@ -99,7 +99,7 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
                  FILE *out, Progress &progress, int failures) {
     const uint32_t seed = 1;
     const double offsets[] = {1e3, 1e5, 1e7};
-    kb::Stopwatch wall;
+    common::Stopwatch wall;
     progress.note("kdrt-bench --accuracy: generating the watertight and hard-case ray sets");
     std::vector<kb::AccuracySet> extra = kb::watertight_sets(opt.hard_rays, seed);
     for (kb::AccuracySet &s : kb::hard_case_sets(opt.hard_rays, seed)) extra.push_back(std::move(s));
@@ -178,7 +178,7 @@ int main(int argc, char **argv) {
     for (const std::string &path : expand_inputs(args)) {
         Input in;
         in.label = upper_stem(path);
-        if (!kt::load_mesh(path, in.mesh, error)) {
+        if (!common::load_mesh(path, in.mesh, error)) {
             progress.note("kdrt-bench: skipping " + path + ": " + error);
             ++failures;
             continue;
@@ -186,7 +186,7 @@ int main(int argc, char **argv) {
         inputs.push_back(std::move(in));
     }
     for (Input &in : inputs)
-        if (opt.subdivide) in.mesh = kt::subdivided(in.mesh, opt.subdivide), in.label += "_SUB" + std::to_string(opt.subdivide);
+        if (opt.subdivide) in.mesh = common::subdivided(in.mesh, opt.subdivide), in.label += "_SUB" + std::to_string(opt.subdivide);
 
     const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
     if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, out, progress, failures);
@@ -199,7 +199,7 @@ int main(int argc, char **argv) {
 
     std::fprintf(out, "%s\n", kb::csv_header().c_str());
     std::fflush(out);
-    kb::ThreadScheduler build_pool(opt.build_threads);
+    common::ThreadScheduler build_pool(opt.build_threads);
     const uint32_t seed = 1;
     for (const Input &in : inputs) {
         const kb::Scene scene = kb::make_scene(in.mesh, in.label);
@@ -217,11 +217,11 @@ int main(int argc, char **argv) {
         kdrt_tree_free(scout);
 
         // The reference for a fixed sample of the rays, computed once for every row of this mesh.
-        const kt::Oracle oracle(scene.geometry);
+        const oracle::Oracle oracle(scene.geometry);
         const std::vector<size_t> sample = kb::reference_sample(rays.size(), opt.reference_rays, seed);
         std::vector<kdrt_ray> sampled;
         for (size_t i : sample) sampled.push_back(rays[i]);
-        const std::vector<kt::Reference> refs = kt::reference_all(oracle, sampled);
+        const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, sampled);
 
         kb::Row row;
         row.mesh = in.label;
@@ -238,7 +238,7 @@ int main(int argc, char **argv) {
                     options.intersector = intersector;
                     if (build_pool.threads() > 1) options.scheduler = build_pool.hooks();
                     kdrt_tree *tree = nullptr;
-                    kb::Stopwatch build_clock;
+                    common::Stopwatch build_clock;
                     r = kdrt_tree_build(&view, &options, &tree, nullptr);
                     row.build_ms = build_clock.ms();
                     if (r != KDRT_SUCCESS) {
@@ -246,7 +246,7 @@ int main(int argc, char **argv) {
                         ++failures;
                         continue;
                     }
-                    row.trace_ms = kb::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                    row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
                     kdrt_tree_get_stats(tree, &row.stats);
                     kdrt_tree_free(tree);
                     row.builder = variant.builder;

@@ -8,9 +8,9 @@
 #include "kdrt.h"
 
 #include "bench.hpp"
-#include "mesh_io.hpp"
-#include "parse.hpp"
-#include "random.hpp"
+#include "common/mesh_io.hpp"
+#include "common/parse.hpp"
+#include "common/random.hpp"
 #include "ray_counts.hpp"
 
 #include <ctime>
@@ -80,37 +80,37 @@ int main(int argc, char **argv)
             std::fputs(kUsage, stdout);
             return 0;
         } else if (arg == "--size" && i + 1 < argc) {
-            if (!kt::parse_size(std::string(argv[++i]), 8192, width, height)) return fail(std::string("--size wants WxH, got '") + argv[i] + "'");
+            if (!common::parse_size(std::string(argv[++i]), 8192, width, height)) return fail(std::string("--size wants WxH, got '") + argv[i] + "'");
         } else if (arg == "--repeat" && i + 1 < argc) {
-            if (!kt::parse_count(std::string(argv[++i]), 1000, repeat) || repeat == 0) return fail(std::string("--repeat wants 1 to 1000, got '") + argv[i] + "'");
+            if (!common::parse_count(std::string(argv[++i]), 1000, repeat) || repeat == 0) return fail(std::string("--repeat wants 1 to 1000, got '") + argv[i] + "'");
         } else if (arg == "--subdivide" && i + 1 < argc) {
-            if (!kt::parse_count(std::string(argv[++i]), 4, subdivide)) return fail(std::string("--subdivide wants 0 to 4, got '") + argv[i] + "'");
+            if (!common::parse_count(std::string(argv[++i]), 4, subdivide)) return fail(std::string("--subdivide wants 0 to 4, got '") + argv[i] + "'");
         } else if (!arg.empty() && arg[0] == '-') {
             return fail("unknown option '" + arg + "' (--help lists them)");
         } else {
             paths.push_back(arg);
         }
     }
-    std::vector<kt::Mesh> meshes;
+    std::vector<common::Mesh> meshes;
     if (paths.empty()) {
         for (const char *name : {"/seed/nefertiti.off", "/common/stanford-bunny.obj"}) {
-            kt::Mesh mesh;
+            common::Mesh mesh;
             std::string error;
-            if (kt::load_mesh(std::string(KDRT_MESH_DIR) + name, mesh, error)) meshes.push_back(mesh);
+            if (common::load_mesh(std::string(KDRT_MESH_DIR) + name, mesh, error)) meshes.push_back(mesh);
         }
-        if (meshes.empty()) meshes.push_back(kt::torus(96, 48, 1.0, 0.35, 0.5));
+        if (meshes.empty()) meshes.push_back(common::torus(96, 48, 1.0, 0.35, 0.5));
     }
     for (const std::string &path : paths) {
-        kt::Mesh mesh;
+        common::Mesh mesh;
         std::string error;
-        if (!kt::load_mesh(path, mesh, error)) return fail(error);
+        if (!common::load_mesh(path, mesh, error)) return fail(error);
         meshes.push_back(mesh);
     }
 
     std::printf("| Mesh | Rays | Count | Inner nodes | Leaves (empty) | Triangle tests | ns per ray |\n");
     std::printf("|---|---|---:|---:|---:|---:|---:|\n");
-    for (const kt::Mesh &loaded : meshes) {
-        const kt::Mesh mesh = subdivide ? kt::subdivided(loaded, subdivide) : loaded;
+    for (const common::Mesh &loaded : meshes) {
+        const common::Mesh mesh = subdivide ? common::subdivided(loaded, subdivide) : loaded;
         const kb::Scene scene = kb::make_scene(mesh, mesh.name);
         const kdrt_triangles view = scene.geometry.view();
         kdrt_build_options options = kdrt_default_build_options();
@@ -133,7 +133,7 @@ int main(int argc, char **argv)
         for (const kdrt_ray &ray : primary)
             if (on_mesh(ray)) classes[0].rays.push_back(ray);
         classes[1].rays = classes[0].rays;
-        kt::Rng rng(7);
+        common::Rng rng(7);
         for (size_t i = classes[1].rays.size(); i > 1; --i) std::swap(classes[1].rays[i - 1], classes[1].rays[rng.below(uint32_t(i))]);
         for (const kdrt_ray &ray : diffuse) classes[on_mesh(ray) ? 3 : 2].rays.push_back(ray);
         for (const Class &c : classes) {

@@ -8,11 +8,11 @@
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
-#include "mesh_io.hpp" // kt::Mesh, kt::load_mesh (Assimp, guarded against malformed files), kt::torus
-#include "thread_scheduler.hpp" // kb::ThreadScheduler: the SAH build's tasks on every core
-#include "vec3.hpp"             // kt::Vec3
-#include "atomic_file.hpp"      // kt::write_file_atomically
-#include "parse.hpp"            // kt::parse_count, kt::parse_size
+#include "common/mesh_io.hpp" // common::Mesh, common::load_mesh (Assimp, guarded against malformed files), common::torus
+#include "common/thread_scheduler.hpp" // common::ThreadScheduler: the SAH build's tasks on every core
+#include "common/vec3.hpp"             // common::Vec3
+#include "common/atomic_file.hpp"      // common::write_file_atomically
+#include "common/parse.hpp"            // common::parse_count, common::parse_size
 #include <stb_image_write.h>
 
 #include <algorithm>
@@ -56,9 +56,9 @@ const char *const kUsage =
     "\n"
     "Tree statistics and build and trace times go to stderr.\n";
 
-using kt::Mesh;
+using common::Mesh;
 
-using kt::Vec3;
+using common::Vec3;
 
 double seconds_since(std::chrono::steady_clock::time_point start)
 {
@@ -80,7 +80,7 @@ bool write_png(const std::string &path, int width, int height, const std::vector
         error = "cannot encode the PNG (out of memory?)";
         return false;
     }
-    return kt::write_file_atomically(path, png, error);
+    return common::write_file_atomically(path, png, error);
 }
 
 int fail(const std::string &message)
@@ -108,11 +108,11 @@ static int run(int argc, char **argv)
             out_path = argv[++i];
         } else if (arg == "--size") {
             if (!has_value) return fail("--size needs WxH, e.g. --size 800x600");
-            if (!kt::parse_size(std::string(argv[++i]), 16384, width, height))
+            if (!common::parse_size(std::string(argv[++i]), 16384, width, height))
                 return fail(std::string("bad --size '") + argv[i] + "': expected WxH with each side 1..16384");
         } else if (arg == "--leaf-size") {
             if (!has_value) return fail("--leaf-size needs a number");
-            if (!kt::parse_count(std::string(argv[++i]), 0xFFFFFFFFul, leaf_size))
+            if (!common::parse_count(std::string(argv[++i]), 0xFFFFFFFFul, leaf_size))
                 return fail(std::string("bad --leaf-size '") + argv[i] + "': expected a whole number");
         } else if (arg.size() > 1 && arg[0] == '-') {
             std::fputs(kUsage, stderr);
@@ -138,14 +138,14 @@ static int run(int argc, char **argv)
         if (file_exists(bunny)) {
             mesh_path = bunny;
         } else {
-            mesh = kt::torus(96, 48, 1.0, 0.35, 0.6);  // tilted towards the camera so its hole shows
+            mesh = common::torus(96, 48, 1.0, 0.35, 0.6);  // tilted towards the camera so its hole shows
             std::fprintf(stderr, "mesh: %s (no %s)\n", mesh.name.c_str(), bunny.c_str());
         }
     }
     if (!mesh_path.empty()) {
         std::string error;
         if (!file_exists(mesh_path)) return fail("cannot read mesh " + mesh_path + ": " + std::strerror(errno));
-        if (!kt::load_mesh(mesh_path, mesh, error)) return fail("cannot load mesh " + mesh_path + ": " + error);
+        if (!common::load_mesh(mesh_path, mesh, error)) return fail("cannot load mesh " + mesh_path + ": " + error);
         std::fprintf(stderr, "mesh: %s\n", mesh_path.c_str());
     }
 
@@ -157,7 +157,7 @@ static int run(int argc, char **argv)
     view.triangle_count = uint32_t(mesh.indices.size() / 3);
 
     // The tree: the default (SAH) builder, its subtrees built on every core.
-    kb::ThreadScheduler build_threads;
+    common::ThreadScheduler build_threads;
     kdrt_build_options options = kdrt_default_build_options();
     options.max_leaf_size = uint32_t(leaf_size);
     options.scheduler = build_threads.hooks();

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""Tests of tools/rmse_vs_time.py (against tests/fake_kdrt_render.py, which has kdrt-render's
-command line) and tools/frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed).
+"""Tests of examples/render/rmse_vs_time.py (against tests/fake_kdrt_render.py, which has kdrt-render's
+command line) and examples/render/frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed).
 
 usage: tests/check_tools.py [RmseVsTime | FramesToVideo]   (unittest names; default: both)
 """
@@ -15,7 +15,7 @@ import unittest
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-TOOLS = HERE.parent / "tools"
+TOOLS = HERE.parent / "examples" / "render"
 FAKE = HERE / "fake_kdrt_render.py"
 
 

@@ -145,7 +145,7 @@ TEST_CASE("aabb: kdrt_aabb_of_triangles", "[aabb]") {
         CHECK(is_empty_box(box));
     }
     SECTION("agrees with kdrt_tree_bounds") {
-        kt::Mesh mesh = kt::sphere(9, 13, 2.5);
+        common::Mesh mesh = kt::sphere(9, 13, 2.5);
         kdrt_triangles view = mesh.view();
         REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
         kt::TreePtr tree = kt::build(mesh, 4);

@@ -183,7 +183,7 @@ TEST_CASE("bench options --intersector and --accuracy parse, with their defaults
 }
 
 TEST_CASE("diffuse rays leave their primary hit through kdrt_spawn_ray, near and far from the origin", "[bench]") {
-    const kt::Mesh ball = kt::sphere(16, 32, 1.0);
+    const common::Mesh ball = kt::sphere(16, 32, 1.0);
     const kb::Scene scene = kb::make_scene(ball, "BALL");
     // The same frame moved 1e5 along (1, 1, 1) (scaled by 100, as the far accuracy set does):
     // there a float step is 1/128, and a fixed offset of 1e-4 along the normal rounds away.
@@ -223,7 +223,7 @@ TEST_CASE("diffuse rays leave their primary hit through kdrt_spawn_ray, near and
 }
 
 TEST_CASE("accuracy sets: the frame, the frame moved far away with its camera", "[bench]") {
-    const kt::Mesh ball = kt::sphere(12, 24, 1.0);
+    const common::Mesh ball = kt::sphere(12, 24, 1.0);
     const kb::Scene scene = kb::make_scene(ball, "BALL");
     const std::vector<kb::AccuracySet> frame = kb::frame_sets(scene, 20, 20, 1);
     REQUIRE(frame.size() == 2);
@@ -332,13 +332,13 @@ TEST_CASE("accuracy run on tiny sets: rows per intersector, leaks counted on mus
 
     // Rays at the vertices and edges of a closed sphere: Moeller-Trumbore lets some through, the
     // watertight test none; both rows say so in Leaks.
-    const std::vector<kt::Mesh> closed = kt::closed_meshes(false);
+    const std::vector<common::Mesh> closed = oracle::closed_meshes(false);
     REQUIRE_FALSE(closed.empty());
     kb::AccuracySet must;
     must.set = "watertight";
     must.scene = closed[0].name;
     must.mesh = closed[0];
-    must.rays = kt::rays_at_vertices_and_edges(must.mesh, 3000, 1);
+    must.rays = oracle::rays_at_vertices_and_edges(must.mesh, 3000, 1);
     must.must_hit = true;
     rows.clear();
     REQUIRE(kb::run_accuracy_set(must, both, 500, 1, 1, 1, false, rows, error));
@@ -433,7 +433,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
 }
 
 TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "[bench]") {
-    const kt::Mesh ball = kt::sphere(12, 24, 5.0);
+    const common::Mesh ball = kt::sphere(12, 24, 5.0);
     const kb::Scene scene = kb::make_scene(kt::translated(ball, 100, -40, 7), "BALL");
     REQUIRE(scene.mesh_triangles == ball.triangle_count());
     REQUIRE(scene.geometry.triangle_count() == ball.triangle_count() + 2);
@@ -478,15 +478,15 @@ TEST_CASE("the reference sample is seeded, distinct and sorted", "[bench]") {
 }
 
 TEST_CASE("Mismatches counts answers that contradict the reference", "[bench]") {
-    const kt::Mesh ball = kt::sphere(16, 32, 1.0);
+    const common::Mesh ball = kt::sphere(16, 32, 1.0);
     const kb::Scene scene = kb::make_scene(ball, "BALL");
     kt::TreePtr tree = kt::build(scene.geometry, 4);
     const std::vector<kdrt_ray> rays = kb::make_rays(scene, kb::RayKind::primary, 40, 40, tree.get(), 1);
     std::vector<kdrt_hit> hits(rays.size());
     for (size_t i = 0; i < rays.size(); ++i) kdrt_intersect(tree.get(), &rays[i], &hits[i]);
-    const kt::Oracle oracle(scene.geometry);
+    const oracle::Oracle oracle(scene.geometry);
     const std::vector<size_t> sample = kb::reference_sample(rays.size(), 0, 1);
-    const std::vector<kt::Reference> refs = kt::reference_all(oracle, rays);
+    const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
     REQUIRE(kb::count_mismatches(oracle, refs, sample, rays, hits) == 0);
 
     // Break three answers in the three ways the column counts: a miss, a wrong t, a far triangle.

@@ -3,7 +3,7 @@
 // public API can see: the statistics, and the answer to every one of 20,000 random rays.
 
 #include "test_support.hpp"
-#include "thread_scheduler.hpp"
+#include "common/thread_scheduler.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -25,7 +25,7 @@ struct ReverseScheduler {
     kdrt_scheduler hooks() { return kdrt_scheduler{&ReverseScheduler::run, this}; }
 };
 
-kt::TreePtr build_sah(const kt::Mesh &mesh, uint32_t leaf, const kdrt_scheduler &scheduler) {
+kt::TreePtr build_sah(const common::Mesh &mesh, uint32_t leaf, const kdrt_scheduler &scheduler) {
     kdrt_build_options o = kdrt_default_build_options();
     o.builder = KDRT_BUILDER_SAH;
     o.max_leaf_size = leaf;
@@ -58,7 +58,7 @@ void check_same_tree(const kdrt_tree *a, const kdrt_tree *b, const std::vector<k
 TEST_CASE("build: the parallel SAH build gives the same tree on any scheduler", "[build][sah]") {
     struct Scene {
         const char *name;
-        kt::Mesh mesh;
+        common::Mesh mesh;
     };
     Scene scenes[] = {{"sphere, 40,000 triangles", kt::sphere(100, 200, 1.0)},
                       {"random soup, 30,000 triangles", kt::random_soup(30000, 5)},
@@ -77,7 +77,7 @@ TEST_CASE("build: the parallel SAH build gives the same tree on any scheduler", 
 
             for (unsigned threads : {1u, 2u, 3u, 8u}) {
                 INFO(threads << " threads");
-                kb::ThreadScheduler pool(threads);
+                common::ThreadScheduler pool(threads);
                 kt::TreePtr parallel = build_sah(scene.mesh, leaf, pool.hooks());
                 check_same_tree(serial.get(), parallel.get(), rays);
             }
@@ -120,8 +120,8 @@ bool triangle_meets_box(const double tri[3][3], const kdrt_aabb &box, double mar
 // right at all, to every triangle that reaches into the box. Binning the triangles' boxes alone
 // breaks the first half on these curved meshes.
 TEST_CASE("build: SAH leaves refer to exactly the triangles that meet their boxes", "[build][sah]") {
-    const kt::Mesh meshes[] = {kt::sphere(16, 32, 1.0), kt::random_soup(600, 11), kt::grid(12, 12, 5)};
-    for (const kt::Mesh &mesh : meshes) {
+    const common::Mesh meshes[] = {kt::sphere(16, 32, 1.0), kt::random_soup(600, 11), kt::grid(12, 12, 5)};
+    for (const common::Mesh &mesh : meshes) {
         for (uint32_t leaf : {1u, 4u}) {
             kt::TreePtr tree = kt::build(mesh, leaf, KDRT_BUILDER_SAH);
             kdrt_aabb bounds = kdrt_tree_bounds(tree.get());

@@ -258,7 +258,7 @@ TEST_CASE("errors: an allocator with only alloc or only free", "[errors][alloc]"
 }
 
 TEST_CASE("errors: indices out of range name the first bad triangle", "[errors]") {
-    kt::Mesh grid = kt::grid(6, 5, 3);  // 60 triangles, 42 vertices
+    common::Mesh grid = kt::grid(6, 5, 3);  // 60 triangles, 42 vertices
     kdrt_build_options o = kdrt_default_build_options();
     kdrt_tree *tree;
     kdrt_build_report report;
@@ -267,7 +267,7 @@ TEST_CASE("errors: indices out of range name the first bad triangle", "[errors]"
         for (uint32_t bad_value : {42u, 43u, 1000u, 0xFFFFFFFFu})
             for (int corner = 0; corner < 3; ++corner) {
                 INFO("index " << bad_value << " at corner " << corner);
-                kt::Mesh m = grid;
+                common::Mesh m = grid;
                 m.indices[17 * 3 + corner] = bad_value;
                 m.indices[40 * 3 + 1] = 99;
                 kdrt_triangles view = m.view();
@@ -291,7 +291,7 @@ TEST_CASE("errors: indices out of range name the first bad triangle", "[errors]"
         kdrt_tree_free(tree);
     }
     SECTION("soup with vertex_count < 3 * triangle_count") {
-        kt::Mesh soup = kt::as_soup(grid);
+        common::Mesh soup = kt::as_soup(grid);
         kdrt_triangles view = soup.view();
         for (uint32_t short_by = 1; short_by <= 7; ++short_by) {
             INFO("short by " << short_by);
@@ -307,7 +307,7 @@ TEST_CASE("errors: indices out of range name the first bad triangle", "[errors]"
 }
 
 TEST_CASE("errors: NaN and infinite coordinates name the first bad triangle", "[errors]") {
-    kt::Mesh soup = kt::random_soup(30, 11);
+    common::Mesh soup = kt::random_soup(30, 11);
     kdrt_build_options o = kdrt_default_build_options();
     kdrt_tree *tree;
     kdrt_build_report report;
@@ -315,7 +315,7 @@ TEST_CASE("errors: NaN and infinite coordinates name the first bad triangle", "[
         for (int corner = 0; corner < 3; ++corner)
             for (int axis = 0; axis < 3; ++axis) {
                 INFO("value " << bad << " corner " << corner << " axis " << axis);
-                kt::Mesh m = soup;
+                common::Mesh m = soup;
                 m.positions[(size_t(9) * 3 + corner) * 3 + axis] = bad;  // triangle 9
                 m.positions[(size_t(20) * 3 + 2) * 3 + 0] = kNaN;        // and triangle 20
                 kdrt_triangles view = m.view();
@@ -330,21 +330,21 @@ TEST_CASE("errors: NaN and infinite coordinates name the first bad triangle", "[
             }
 
     SECTION("indexed: the first triangle using the bad vertex, unused bad vertices are fine") {
-        kt::Mesh grid = kt::grid(7, 7, 5);
+        common::Mesh grid = kt::grid(7, 7, 5);
         uint32_t vertex = 27;
         uint32_t first_user = KDRT_INVALID_ID;
         for (size_t i = 0; i < grid.indices.size() && first_user == KDRT_INVALID_ID; ++i)
             if (grid.indices[i] == vertex) first_user = uint32_t(i / 3);
         REQUIRE(first_user != KDRT_INVALID_ID);
         REQUIRE(first_user > 0);
-        kt::Mesh m = grid;
+        common::Mesh m = grid;
         m.positions[size_t(vertex) * 3 + 2] = -kInf;
         kdrt_triangles view = m.view();
         CHECK(try_build(view, o, &tree, &report) == KDRT_ERROR_NON_FINITE_VERTEX);
         CHECK(report.invalid_triangle == first_user);
 
         // A NaN vertex no triangle refers to is never read as part of a triangle.
-        kt::Mesh extra = grid;
+        common::Mesh extra = grid;
         extra.positions.insert(extra.positions.end(), {kNaN, kNaN, kNaN});
         view = extra.view();
         REQUIRE(try_build(view, o, &tree, &report) == KDRT_SUCCESS);
@@ -360,9 +360,9 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
     // An indexed soup: triangle i uses vertices 3i..3i+2. The position buffer holds a second copy
     // of every vertex past vertex_count, so a triangle whose index points there has real geometry
     // (if the library used it, it would be hit exactly where the original triangle is).
-    kt::Mesh base = kt::random_soup(400, 21);
+    common::Mesh base = kt::random_soup(400, 21);
     const uint32_t n = base.triangle_count(), nv = base.vertex_count();
-    kt::Mesh m = base;
+    common::Mesh m = base;
     m.positions.insert(m.positions.end(), base.positions.begin(), base.positions.end());
     for (uint32_t i = 0; i < 3 * n; ++i) m.indices.push_back(i);
     std::set<uint32_t> bad;
@@ -380,7 +380,7 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
     view.vertex_count = nv;  // the copies lie past the end
 
     // The good subset as its own mesh, with the map back to the original indices.
-    kt::Mesh good;
+    common::Mesh good;
     good.name = "good subset";
     std::vector<uint32_t> good_to_orig;
     for (uint32_t t = 0; t < n; ++t)
@@ -389,7 +389,7 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
             good.positions.insert(good.positions.end(), base.positions.begin() + size_t(t) * 9,
                                   base.positions.begin() + size_t(t) * 9 + 9);
         }
-    kt::Oracle oracle(good);
+    oracle::Oracle oracle(good);
     kt::TreePtr reference = kt::build(good, 0);
 
     // Rays: random ones, and one aimed at each bad triangle's centroid (the original geometry).
@@ -402,7 +402,7 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
         rays.push_back(ray_of(c[0] - 20, c[1] + 3, c[2] - 7, 20, -3, 7));
         rays.push_back(ray_of(c[0], c[1], c[2] + 30, 0, 0, -1));
     }
-    std::vector<kt::Reference> refs = kt::reference_all(oracle, rays);
+    std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
     std::vector<kdrt_hit> expected = kt::trace_all(reference.get(), rays);
 
     for (uint32_t leaf : kLeafSizes) {
@@ -422,7 +422,7 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
         CHECK(stats.triangles == n - bad.size());
 
         std::vector<kdrt_hit> hits = kt::trace_all(tree, rays);
-        kt::Agreement tally;
+        oracle::Agreement tally;
         size_t bad_hits = 0, differ = 0, hits_count = 0;
         for (size_t i = 0; i < rays.size(); ++i) {
             kdrt_hit h = hits[i];
@@ -440,7 +440,7 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
             kdrt_hit local = h;
             if (local.triangle != KDRT_INVALID_ID)
                 local.triangle = uint32_t(std::lower_bound(good_to_orig.begin(), good_to_orig.end(), h.triangle) - good_to_orig.begin());
-            kt::check_hit(oracle, refs[i], rays[i], local, tally);
+            oracle::check_hit(oracle, refs[i], rays[i], local, tally);
         }
         INFO(tally.first_wrong);
         CHECK(bad_hits == 0);
@@ -568,7 +568,7 @@ TEST_CASE("errors: kdrt_result_string names every code distinctly", "[errors]") 
 }
 
 TEST_CASE("errors: queries with NULL arguments", "[errors]") {
-    kt::Mesh mesh = kt::sphere(6, 8, 1.0);
+    common::Mesh mesh = kt::sphere(6, 8, 1.0);
     kt::TreePtr tree = kt::build(mesh, 2);
     kdrt_ray r = ray_of(0, 0, 0, 0.3f, 0.2f, 0.9f);
     kdrt_hit h;
@@ -599,7 +599,7 @@ TEST_CASE("errors: queries with NULL arguments", "[errors]") {
 
 TEST_CASE("errors: rays that can hit nothing miss", "[errors]") {
     // From inside a closed sphere every valid ray hits.
-    kt::Mesh mesh = kt::sphere(8, 12, 1.0);
+    common::Mesh mesh = kt::sphere(8, 12, 1.0);
     const kdrt_ray good = ray_of(0.1f, 0.05f, -0.02f, 0.3f, 0.5f, 0.8f);
     std::vector<std::pair<std::string, kdrt_ray>> bad;
     for (int a = 0; a < 3; ++a)
@@ -638,7 +638,7 @@ TEST_CASE("errors: rays that can hit nothing miss", "[errors]") {
 // ---- the counting allocator ----
 
 TEST_CASE("alloc: a build then kdrt_tree_free leaves nothing allocated, user reaches both callbacks", "[errors][alloc]") {
-    kt::Mesh mesh = kt::random_soup(700, 5);
+    common::Mesh mesh = kt::random_soup(700, 5);
     kdrt_triangles view = mesh.view();
     for (uint32_t leaf : kLeafSizes) {
         INFO("leaf size " << leaf);
@@ -663,7 +663,7 @@ TEST_CASE("alloc: a build then kdrt_tree_free leaves nothing allocated, user rea
 }
 
 TEST_CASE("alloc: queries allocate nothing", "[errors][alloc]") {
-    kt::Mesh mesh = kt::sphere(16, 24, 2.0);
+    common::Mesh mesh = kt::sphere(16, 24, 2.0);
     kdrt_triangles view = mesh.view();
     CountingAllocator counter;
     UseCounter use(counter);
@@ -751,7 +751,7 @@ void fail_each_allocation(const kdrt_triangles &view, kdrt_build_options o, kdrt
 }  // namespace
 
 TEST_CASE("alloc: failing any one allocation of a build frees everything", "[errors][alloc]") {
-    kt::Mesh mesh = kt::random_soup(500, 17);
+    common::Mesh mesh = kt::random_soup(500, 17);
     kdrt_triangles view = mesh.view();
     std::vector<kdrt_ray> rays = kt::random_rays(kdrt_aabb{{0, 0, 0}, {10, 10, 10}}, 500, 4);
     for (uint32_t leaf : kLeafSizes) {
@@ -759,7 +759,7 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
         fail_each_allocation(view, options_with_leaf(leaf), KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
     }
     {  // indexed mesh, skipping invalid triangles
-        kt::Mesh grid = kt::grid(20, 15, 2);
+        common::Mesh grid = kt::grid(20, 15, 2);
         grid.positions[3 * 50 + 1] = kNaN;
         grid.indices[3 * 100] = 100000;
         kdrt_triangles gv = grid.view();
@@ -775,7 +775,7 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
         fail_each_allocation(empty, options_with_leaf(4), KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
     }
     {  // the SAH builder allocates per node: a smaller soup keeps the k-th-failure loop short
-        kt::Mesh small = kt::random_soup(60, 18);
+        common::Mesh small = kt::random_soup(60, 18);
         kdrt_triangles sv = small.view();
         for (uint32_t leaf : {1u, 4u}) {
             INFO("SAH, leaf size " << leaf);
@@ -785,7 +785,7 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
         }
     }
     {  // large enough for the SAH build to cut its top into tasks, run here in reverse order
-        kt::Mesh soup = kt::random_soup(9000, 19);
+        common::Mesh soup = kt::random_soup(9000, 19);
         kdrt_triangles sv = soup.view();
         kdrt_build_options o = options_with_leaf(4);
         o.builder = KDRT_BUILDER_SAH;
@@ -798,10 +798,10 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
 }
 
 TEST_CASE("alloc: a build failing on a bad triangle frees everything", "[errors][alloc]") {
-    kt::Mesh mesh = kt::random_soup(500, 17);
+    common::Mesh mesh = kt::random_soup(500, 17);
     std::vector<kdrt_ray> rays;
     for (uint32_t bad_triangle : {0u, 250u, 499u}) {
-        kt::Mesh m = mesh;
+        common::Mesh m = mesh;
         m.positions[size_t(bad_triangle) * 9 + 4] = kInf;
         kdrt_triangles view = m.view();
         for (uint32_t leaf : {0u, 1u, 4u}) {
@@ -831,7 +831,7 @@ TEST_CASE("alloc: a build failing on a bad triangle frees everything", "[errors]
 }
 
 TEST_CASE("errors: kdrt_hit_surface and kdrt_spawn_ray refuse a made-up hit on a skipped triangle", "[errors]") {
-    kt::Mesh grid = kt::grid(4, 4, 3);
+    common::Mesh grid = kt::grid(4, 4, 3);
     grid.indices[3 * 5 + 1] = 1000000;  // triangle 5: an index far out of range, skipped
     grid.positions[3 * grid.indices[3 * 7]] = kNaN;  // triangle 7 (and its neighbours): NaN, skipped
     kdrt_triangles view = grid.view();

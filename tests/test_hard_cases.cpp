@@ -67,7 +67,7 @@ kdrt_hit trace(const kdrt_tree *tree, const kdrt_ray &ray) {
 
 // A soup assembled triangle by triangle.
 struct Soup {
-    kt::Mesh mesh;
+    common::Mesh mesh;
     explicit Soup(const std::string &name) { mesh.name = name; }
     uint32_t add(const float a[3], const float b[3], const float c[3]) {
         for (const float *p : {a, b, c}) mesh.positions.insert(mesh.positions.end(), p, p + 3);
@@ -105,7 +105,7 @@ class MedianModel {
 public:
     // max_depth is used as given (no clamping), so the model shows how deep a tree would go.
     // The SAH cost is priced with the given costs (kdrt.h's defaults unless told).
-    MedianModel(const kt::Mesh &mesh, uint32_t leaf, uint32_t max_depth,
+    MedianModel(const common::Mesh &mesh, uint32_t leaf, uint32_t max_depth,
                 double traversal_cost = KDRT_DEFAULT_SAH_TRAVERSAL_COST,
                 double intersection_cost = KDRT_DEFAULT_SAH_INTERSECTION_COST)
         : leaf_(leaf), max_depth_(max_depth), traversal_cost_(traversal_cost), intersection_cost_(intersection_cost) {
@@ -213,7 +213,7 @@ private:
 
 // Checks a built tree's statistics for consistency and against the model. max_depth as given
 // to the build (0: default).
-void check_stats(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t leaf, uint32_t max_depth) {
+void check_stats(const kdrt_tree *tree, const common::Mesh &mesh, uint32_t leaf, uint32_t max_depth) {
     kdrt_tree_stats s;
     kdrt_tree_get_stats(tree, &s);
     INFO(mesh.name << " leaf size " << leaf << " max_depth " << max_depth << ": nodes " << s.nodes << " leaves "
@@ -246,17 +246,17 @@ void check_stats(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t leaf, uin
 // Traces rays through the brute force (leaf size 0), checks it against the oracle (when given),
 // then requires every other leaf size to answer identically, for kdrt_intersect and
 // kdrt_occluded. Returns the brute force's hits.
-std::vector<kdrt_hit> check_against_brute_force(const kdrt_triangles &view, const kt::Mesh *oracle_mesh,
+std::vector<kdrt_hit> check_against_brute_force(const kdrt_triangles &view, const common::Mesh *oracle_mesh,
                                                 const std::vector<kdrt_ray> &rays, const std::string &label,
                                                 uint32_t max_depth = 0) {
     INFO(label << ", " << rays.size() << " rays");
     kt::TreePtr base = build_view(view, 0);
     std::vector<kdrt_hit> expected = kt::trace_all(base.get(), rays);
     if (oracle_mesh) {
-        kt::Oracle oracle(*oracle_mesh);
-        std::vector<kt::Reference> refs = kt::reference_all(oracle, rays);
-        kt::Agreement tally;
-        for (size_t i = 0; i < rays.size(); ++i) kt::check_hit(oracle, refs[i], rays[i], expected[i], tally);
+        oracle::Oracle oracle(*oracle_mesh);
+        std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
+        oracle::Agreement tally;
+        for (size_t i = 0; i < rays.size(); ++i) oracle::check_hit(oracle, refs[i], rays[i], expected[i], tally);
         INFO("brute force vs oracle: " << tally.exact << " exact, " << tally.ambiguous << " ambiguous; " << tally.first_wrong);
         CHECK(tally.wrong == 0);
     }
@@ -337,7 +337,7 @@ struct Lcg {
 
 TEST_CASE("hard: axis-parallel rays with +0 and -0 components through a grid and a sphere", "[hard]") {
     SECTION("grid") {
-        kt::Mesh grid = kt::grid(16, 16, 4);
+        common::Mesh grid = kt::grid(16, 16, 4);
         kdrt_triangles view = grid.view();
         kdrt_aabb box;
         REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
@@ -363,7 +363,7 @@ TEST_CASE("hard: axis-parallel rays with +0 and -0 components through a grid and
         CHECK(hit_count > rays.size() / 4);
     }
     SECTION("sphere") {
-        kt::Mesh sphere = kt::sphere(12, 16, 2.0);
+        common::Mesh sphere = kt::sphere(12, 16, 2.0);
         kdrt_triangles view = sphere.view();
         kdrt_aabb box;
         REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
@@ -383,8 +383,8 @@ TEST_CASE("hard: axis-parallel rays with +0 and -0 components through a grid and
 }
 
 TEST_CASE("hard: rays lying exactly in split planes, with +0 and -0 across the plane", "[hard]") {
-    std::vector<kt::Mesh> meshes = {kt::grid(12, 12, 9), kt::sphere(10, 14, 3.0), kt::random_soup(300, 12)};
-    for (const kt::Mesh &mesh : meshes) {
+    std::vector<common::Mesh> meshes = {kt::grid(12, 12, 9), kt::sphere(10, 14, 3.0), kt::random_soup(300, 12)};
+    for (const common::Mesh &mesh : meshes) {
         kdrt_triangles view = mesh.view();
         kdrt_aabb box;
         REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
@@ -439,7 +439,7 @@ namespace {
 // Sorted centroids x: 2 (x6), 4.33, 5 (x12), 5.67, 8 (x6): the median (index 13) is 5.
 struct PlaneScene {
     int axis;
-    kt::Mesh mesh;
+    common::Mesh mesh;
     explicit PlaneScene(int a) : axis(a) {
         Soup s("plane_scene_axis" + std::to_string(a));
         auto add = [&](float x0, float y0, float z0, float x1, float y1, float z1, float x2, float y2, float z2) {
@@ -572,7 +572,7 @@ TEST_CASE("hard: many identical triangles: the build terminates, the lowest inde
         }
     }
     SECTION("identical triangles among others, indexed and soup") {
-        kt::Mesh before = kt::random_soup(30, 31), after = kt::random_soup(20, 32);
+        common::Mesh before = kt::random_soup(30, 31), after = kt::random_soup(20, 32);
         Soup s("identical_mixed");
         s.mesh.positions = before.positions;
         const uint32_t first = s.mesh.triangle_count();
@@ -581,7 +581,7 @@ TEST_CASE("hard: many identical triangles: the build terminates, the lowest inde
         REQUIRE(first == 30);
 
         // The same, indexed, every copy sharing three vertices.
-        kt::Mesh indexed = s.mesh;
+        common::Mesh indexed = s.mesh;
         indexed.name = "identical_mixed_indexed";
         indexed.positions.clear();
         for (uint32_t t = 0; t < s.mesh.triangle_count(); ++t) {
@@ -595,7 +595,7 @@ TEST_CASE("hard: many identical triangles: the build terminates, the lowest inde
                 indexed.indices.insert(indexed.indices.end(), {base, base + 1, base + 2});
             }
         }
-        for (const kt::Mesh *mesh : {&s.mesh, &indexed}) {
+        for (const common::Mesh *mesh : {&s.mesh, &indexed}) {
             INFO(mesh->name);
             kdrt_triangles view = mesh->view();
             for (uint32_t leaf : kLeafSizes) {
@@ -631,7 +631,7 @@ TEST_CASE("hard: coplanar overlapping triangles: the lower caller index wins, wh
     const uint32_t big = s.add(-10, -10, 0, 20, -10, 0, -10, 20, 0);
     REQUIRE(small == 0);
     REQUIRE(big == 1);
-    kt::Mesh fillers = kt::random_soup(300, 77);  // in [0, 10]^3; moved to y in [30, 40]
+    common::Mesh fillers = kt::random_soup(300, 77);  // in [0, 10]^3; moved to y in [30, 40]
     for (size_t i = 1; i < fillers.positions.size(); i += 3) fillers.positions[i] += 30;
     s.mesh.positions.insert(s.mesh.positions.end(), fillers.positions.begin(), fillers.positions.end());
     kdrt_triangles view = s.mesh.view();
@@ -655,8 +655,8 @@ TEST_CASE("hard: coplanar overlapping triangles: the lower caller index wins, wh
 TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed mesh does, left-out triangles nothing", "[hard]") {
     // THE TREE: nodes, references, a 16-byte record per triangle and each distinct corner
     // position once, 12 bytes; kdrt_tree_stats.bytes counts them and the tree struct itself.
-    kt::Mesh mesh = kt::sphere(16, 24, 2.0);
-    kt::Mesh soup = kt::as_soup(mesh);
+    common::Mesh mesh = kt::sphere(16, 24, 2.0);
+    common::Mesh soup = kt::as_soup(mesh);
     std::set<std::array<uint32_t, 3>> distinct;
     for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
         std::array<uint32_t, 3> bits;
@@ -664,7 +664,7 @@ TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed
         distinct.insert(bits);
     }
     // The same mesh with zero-area triangles and (skipped) ones indexing past the vertices.
-    kt::Mesh extra = mesh;
+    common::Mesh extra = mesh;
     extra.name = "sphere_with_left_out_triangles";
     for (uint32_t i = 0; i < 40; ++i) extra.indices.insert(extra.indices.end(), {i, i, i + 1});
     for (uint32_t i = 0; i < 10; ++i) extra.indices.insert(extra.indices.end(), {i, i + 1, mesh.vertex_count() + i});
@@ -675,7 +675,7 @@ TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed
             kdrt_build_options o = kdrt_default_build_options();
             o.builder = builder, o.max_leaf_size = leaf, o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
             kdrt_tree_stats st[3];
-            const kt::Mesh *meshes[3] = {&mesh, &soup, &extra};
+            const common::Mesh *meshes[3] = {&mesh, &soup, &extra};
             for (int k = 0; k < 3; ++k) {
                 kdrt_triangles view = meshes[k]->view();
                 kdrt_tree *raw = nullptr;
@@ -699,7 +699,7 @@ TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed
 }
 
 TEST_CASE("hard: degenerate triangles are never hit", "[hard]") {
-    kt::Mesh good = kt::random_soup(300, 8);
+    common::Mesh good = kt::random_soup(300, 8);
     Soup s("degenerate_mixed");
     std::vector<std::array<float, 3>> targets;  // points on the degenerate triangles
     Lcg rng(3);
@@ -762,13 +762,13 @@ TEST_CASE("hard: degenerate triangles are never hit", "[hard]") {
     for (kdrt_hit &h : expected)
         if (h.triangle != KDRT_INVALID_ID) h.triangle += degenerate;
     {
-        kt::Oracle oracle(good);
-        std::vector<kt::Reference> refs = kt::reference_all(oracle, rays);
-        kt::Agreement tally;
+        oracle::Oracle oracle(good);
+        std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
+        oracle::Agreement tally;
         for (size_t i = 0; i < rays.size(); ++i) {
             kdrt_hit h = expected[i];
             if (h.triangle != KDRT_INVALID_ID) h.triangle -= degenerate;
-            kt::check_hit(oracle, refs[i], rays[i], h, tally);
+            oracle::check_hit(oracle, refs[i], rays[i], h, tally);
         }
         INFO(tally.first_wrong);
         CHECK(tally.wrong == 0);
@@ -815,8 +815,8 @@ TEST_CASE("hard: degenerate triangles are never hit", "[hard]") {
 }
 
 TEST_CASE("hard: indexed and soup views with packed, 16, 20 and 13 byte strides agree exactly", "[hard]") {
-    kt::Mesh mesh = kt::grid(24, 24, 6);
-    kt::Mesh soup = kt::as_soup(mesh);
+    common::Mesh mesh = kt::grid(24, 24, 6);
+    common::Mesh soup = kt::as_soup(mesh);
 
     // Copies of the vertices at a byte stride; the padding holds garbage (huge floats).
     struct Layout {
@@ -824,7 +824,7 @@ TEST_CASE("hard: indexed and soup views with packed, 16, 20 and 13 byte strides 
         std::vector<unsigned char> bytes;
         kdrt_triangles view;
     };
-    auto make = [](const kt::Mesh &m, size_t stride, const std::string &name) {
+    auto make = [](const common::Mesh &m, size_t stride, const std::string &name) {
         Layout l;
         l.name = name;
         l.view = m.view();
@@ -855,11 +855,11 @@ TEST_CASE("hard: indexed and soup views with packed, 16, 20 and 13 byte strides 
         kt::TreePtr ref_tree = build_view(layouts[0].view, leaf);
         std::vector<kdrt_hit> expected = kt::trace_all(ref_tree.get(), some);
         if (leaf == 4) {
-            kt::Oracle oracle(mesh);
+            oracle::Oracle oracle(mesh);
             std::vector<kdrt_ray> check(some.begin(), some.begin() + std::min<size_t>(some.size(), 20000));
-            std::vector<kt::Reference> refs = kt::reference_all(oracle, check);
-            kt::Agreement tally;
-            for (size_t i = 0; i < check.size(); ++i) kt::check_hit(oracle, refs[i], check[i], expected[i], tally);
+            std::vector<oracle::Reference> refs = oracle::reference_all(oracle, check);
+            oracle::Agreement tally;
+            for (size_t i = 0; i < check.size(); ++i) oracle::check_hit(oracle, refs[i], check[i], expected[i], tally);
             INFO(tally.first_wrong);
             CHECK(tally.wrong == 0);
         }
@@ -889,11 +889,11 @@ TEST_CASE("hard: indexed and soup views with packed, 16, 20 and 13 byte strides 
 TEST_CASE("hard: tree statistics are consistent and follow the documented median build", "[hard]") {
     Soup identical("identical_with_others");
     for (int i = 0; i < 200; ++i) identical.add(1, 1, 1, 2, 1, 1, 1, 2, 1);
-    kt::Mesh extra = kt::random_soup(100, 41);
+    common::Mesh extra = kt::random_soup(100, 41);
     identical.mesh.positions.insert(identical.mesh.positions.end(), extra.positions.begin(), extra.positions.end());
-    std::vector<kt::Mesh> meshes = {kt::grid(20, 20, 1), kt::sphere(16, 24, 2.0), kt::random_soup(1000, 3), identical.mesh,
+    std::vector<common::Mesh> meshes = {kt::grid(20, 20, 1), kt::sphere(16, 24, 2.0), kt::random_soup(1000, 3), identical.mesh,
                                     kt::random_soup(1, 1), kt::random_soup(2, 1)};
-    for (const kt::Mesh &mesh : meshes)
+    for (const common::Mesh &mesh : meshes)
         for (uint32_t leaf : kLeafSizes)
             for (uint32_t max_depth : {0u, 1u, 3u, 10u, 64u, 65u, 200u}) {
                 kdrt_triangles view = mesh.view();
@@ -909,7 +909,7 @@ TEST_CASE("hard: tree statistics are consistent and follow the documented median
 
 namespace {
 
-kt::TreePtr build_priced(const kt::Mesh &mesh, kdrt_builder builder, uint32_t leaf, float traversal, float intersection,
+kt::TreePtr build_priced(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf, float traversal, float intersection,
                          float empty_bonus = 0) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options o = kdrt_default_build_options();
@@ -975,7 +975,7 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
     }
 
     // No tree (leaf size 0): K_I per triangle, whatever the builder; the empty tree costs nothing.
-    const kt::Mesh ball = kt::sphere(16, 24, 2.0);
+    const common::Mesh ball = kt::sphere(16, 24, 2.0);
     for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
         kdrt_tree_stats s = stats_of(build_priced(ball, builder, 0, 0, 0));
         CHECK(s.sah_cost == Approx(20.0 * s.triangles).epsilon(1e-12));
@@ -992,7 +992,7 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
 
     // Deeper median trees with other costs, against the model's own boxes (check_stats does the
     // default costs on many more).
-    for (const kt::Mesh &mesh : {kt::random_soup(500, 5), kt::grid(12, 12, 3), ball})
+    for (const common::Mesh &mesh : {kt::random_soup(500, 5), kt::grid(12, 12, 3), ball})
         for (uint32_t leaf : {1u, 4u, 16u}) {
             INFO(mesh.name << " leaf size " << leaf);
             const Model m = MedianModel(mesh, leaf, default_depth(mesh.triangle_count()), 2.5, 40).result();
@@ -1011,7 +1011,7 @@ namespace {
 // 0.5 - d reach to x = 1000 (centroids far right). At depth d the median centroid is marker d,
 // the pair d lies right of it and leaves the below child, which stays almost as large: the
 // below chain goes D + 1 levels deep while every above child is a leaf.
-kt::Mesh deep_scene(int D) {
+common::Mesh deep_scene(int D) {
     Soup s("deep_" + std::to_string(D));
     auto add = [&](float x0, float x1, float x2) { s.add(x0, 0, 0, x1, 1, 0.5f, x2, 0.5f, 1); };
     const float big = 1000;
@@ -1032,7 +1032,7 @@ kt::Mesh deep_scene(int D) {
 
 TEST_CASE("hard: a tree deeper than KDRT_MAX_DEPTH is clamped and traversed correctly", "[hard]") {
     const int D = 70;
-    kt::Mesh mesh = deep_scene(D);
+    common::Mesh mesh = deep_scene(D);
     const uint32_t n = mesh.triangle_count();
     REQUIRE(n == uint32_t(4 * D + 6));
     // Unclamped, the median build would go past the limit.
@@ -1089,7 +1089,7 @@ TEST_CASE("hard: a hit beyond the near child's box does not hide a nearer one in
     s.add(6, -1, -1, 6, 3, -1, 6, -1, 3);
     s.add(6, -0.5f, 15, 6, -0.5f, 25, -4, 2, 20);
     s.add(4, -1, 19, 4, 3, 19, 4, -1, 23);
-    const kt::Mesh &mesh = s.mesh;
+    const common::Mesh &mesh = s.mesh;
 
     const Model m = MedianModel(mesh, 1, default_depth(mesh.triangle_count())).result();
     REQUIRE(!m.planes.empty());
@@ -1128,10 +1128,10 @@ TEST_CASE("hard: a hit beyond the near child's box does not hide a nearer one in
 }
 
 TEST_CASE("hard: scenes far from the origin", "[hard]") {
-    const std::vector<kt::Mesh> meshes = {kt::grid(16, 16, 2), kt::sphere(12, 18, 4.0), kt::random_soup(500, 14)};
+    const std::vector<common::Mesh> meshes = {kt::grid(16, 16, 2), kt::sphere(12, 18, 4.0), kt::random_soup(500, 14)};
     for (double offset : {1e3, 1e5})
-        for (const kt::Mesh &original : meshes) {
-            kt::Mesh mesh = kt::translated(original, offset, -offset, 0.5 * offset);
+        for (const common::Mesh &original : meshes) {
+            common::Mesh mesh = kt::translated(original, offset, -offset, 0.5 * offset);
             mesh.name = original.name + " moved by " + std::to_string(offset);
             kdrt_triangles view = mesh.view();
             kdrt_aabb box;

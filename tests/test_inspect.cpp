@@ -2,7 +2,7 @@
 // node must find what kdrt_tree_get_stats() counts, boxes and depths must be those a descent from
 // the root gives, and every triangle must be reachable and lie where its leaves are.
 #include "test_support.hpp"
-#include "thread_scheduler.hpp"
+#include "common/thread_scheduler.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -41,7 +41,7 @@ struct Walk {
     std::set<uint32_t> triangles;
 };
 
-void walk(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t index, const kdrt_aabb &box, uint32_t depth,
+void walk(const kdrt_tree *tree, const common::Mesh &mesh, uint32_t index, const kdrt_aabb &box, uint32_t depth,
           double root_area, Walk &w)
 {
     const kdrt_node_info info = node_at(tree, index);
@@ -93,7 +93,7 @@ void walk(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t index, const kdr
 
 // Walks the tree and compares with kdrt_tree_get_stats(); `expected_triangles` are the usable
 // (non-degenerate) triangles, every one of which some leaf must refer to.
-void check_walk(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t expected_triangles)
+void check_walk(const kdrt_tree *tree, const common::Mesh &mesh, uint32_t expected_triangles)
 {
     kdrt_tree_stats stats;
     kdrt_tree_get_stats(tree, &stats);
@@ -114,7 +114,7 @@ void check_walk(const kdrt_tree *tree, const kt::Mesh &mesh, uint32_t expected_t
         CHECK(w.sah_cost == Approx(stats.sah_cost).epsilon(1e-9));
 }
 
-kt::TreePtr build_with(const kt::Mesh &mesh, kdrt_builder builder, uint32_t leaf_size, const kdrt_scheduler *scheduler = nullptr)
+kt::TreePtr build_with(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf_size, const kdrt_scheduler *scheduler = nullptr)
 {
     const kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
@@ -129,7 +129,7 @@ kt::TreePtr build_with(const kt::Mesh &mesh, kdrt_builder builder, uint32_t leaf
 }  // namespace
 
 TEST_CASE("inspect: bad arguments are errors and leave the output untouched", "[inspect]") {
-    const kt::Mesh mesh = kt::random_soup(50, 7);
+    const common::Mesh mesh = kt::random_soup(50, 7);
     kt::TreePtr tree = build_with(mesh, KDRT_BUILDER_SAH, 2);
     kdrt_tree_stats stats;
     kdrt_tree_get_stats(tree.get(), &stats);
@@ -155,8 +155,8 @@ TEST_CASE("inspect: bad arguments are errors and leave the output untouched", "[
 }
 
 TEST_CASE("inspect: a walk finds what kdrt_tree_get_stats counts, both builders", "[inspect]") {
-    const kt::Mesh soup = kt::random_soup(600, 3), ball = kt::sphere(16, 24, 1.0), field = kt::grid(20, 15, 5);
-    for (const kt::Mesh *mesh : {&soup, &ball, &field}) {
+    const common::Mesh soup = kt::random_soup(600, 3), ball = kt::sphere(16, 24, 1.0), field = kt::grid(20, 15, 5);
+    for (const common::Mesh *mesh : {&soup, &ball, &field}) {
         for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
             for (uint32_t leaf_size : {1u, 4u, 16u}) {
                 INFO(mesh->name << ", builder " << int(builder) << ", leaf size " << leaf_size);
@@ -172,15 +172,15 @@ TEST_CASE("inspect: a walk finds what kdrt_tree_get_stats counts, both builders"
 
 TEST_CASE("inspect: the parallel SAH build's joined tree walks the same", "[inspect]") {
     // Over 4096 triangles, so the top is cut into tasks and joined (see THE TREE).
-    const kt::Mesh ball = kt::sphere(64, 96, 1.0);
-    kb::ThreadScheduler pool(2);
+    const common::Mesh ball = kt::sphere(64, 96, 1.0);
+    common::ThreadScheduler pool(2);
     const kdrt_scheduler hooks = pool.hooks();
     kt::TreePtr tree = build_with(ball, KDRT_BUILDER_SAH, 4, &hooks);
     check_walk(tree.get(), ball, ball.triangle_count());
 }
 
 TEST_CASE("inspect: no tree, an empty mesh and zero-area triangles", "[inspect]") {
-    const kt::Mesh soup = kt::random_soup(40, 11);
+    const common::Mesh soup = kt::random_soup(40, 11);
     SECTION("max_leaf_size 0 is one leaf with every triangle") {
         kt::TreePtr tree = build_with(soup, KDRT_BUILDER_MEDIAN, 0);
         REQUIRE(kdrt_tree_node_count(tree.get()) == 1);
@@ -191,7 +191,7 @@ TEST_CASE("inspect: no tree, an empty mesh and zero-area triangles", "[inspect]"
         check_walk(tree.get(), soup, 40);
     }
     SECTION("an empty mesh is one empty leaf") {
-        kt::Mesh empty;
+        common::Mesh empty;
         kt::TreePtr tree = build_with(empty, KDRT_BUILDER_SAH, 4);
         REQUIRE(kdrt_tree_node_count(tree.get()) == 1);
         const kdrt_node_info root = node_at(tree.get(), 0);
@@ -201,7 +201,7 @@ TEST_CASE("inspect: no tree, an empty mesh and zero-area triangles", "[inspect]"
         CHECK(kdrt_tree_reference(tree.get(), 0, &tri) == KDRT_ERROR_INDEX_OUT_OF_RANGE);
     }
     SECTION("zero-area triangles are in no leaf") {
-        kt::Mesh with_degenerate = soup;
+        common::Mesh with_degenerate = soup;
         const float line[9] = {0, 0, 0, 1, 1, 1, 2, 2, 2};  // collinear: zero area
         with_degenerate.positions.insert(with_degenerate.positions.end(), line, line + 9);
         for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
@@ -218,9 +218,9 @@ TEST_CASE("inspect: the shared meshes walk as their stats say", "[inspect][meshe
         return;
     }
     for (const char *name : {"/common/spot.obj", "/seed/knot.off"}) {
-        kt::Mesh mesh;
+        common::Mesh mesh;
         std::string error;
-        if (!kt::load_mesh(dir + name, mesh, error)) {
+        if (!common::load_mesh(dir + name, mesh, error)) {
             WARN(name << ": " << error << ": skipped");
             continue;
         }

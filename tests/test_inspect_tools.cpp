@@ -64,7 +64,7 @@ std::set<Corner> corners_of(const std::vector<kdrt_tools::DepthBox> &boxes)
     return out;
 }
 
-kt::TreePtr sah_tree(const kt::Mesh &mesh, uint32_t leaf_size)
+kt::TreePtr sah_tree(const common::Mesh &mesh, uint32_t leaf_size)
 {
     return kt::build(mesh, leaf_size, KDRT_BUILDER_SAH);
 }
@@ -72,7 +72,7 @@ kt::TreePtr sah_tree(const kt::Mesh &mesh, uint32_t leaf_size)
 }  // namespace
 
 TEST_CASE("inspect tools: the report's walk agrees with the stats and with itself", "[inspect][tools]") {
-    const kt::Mesh mesh = kt::sphere(24, 32, 1.0);
+    const common::Mesh mesh = kt::sphere(24, 32, 1.0);
     for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
         kt::TreePtr tree = kt::build(mesh, 4, builder);
         kdrt_tools::TreeReport r;
@@ -97,7 +97,7 @@ TEST_CASE("inspect tools: the report's walk agrees with the stats and with itsel
 }
 
 TEST_CASE("inspect tools: boxes down to a depth", "[inspect][tools]") {
-    const kt::Mesh mesh = kt::random_soup(300, 4);
+    const common::Mesh mesh = kt::random_soup(300, 4);
     kt::TreePtr tree = sah_tree(mesh, 2);
     std::vector<kdrt_tools::DepthBox> boxes;
     std::string error;
@@ -120,7 +120,7 @@ TEST_CASE("inspect tools: boxes down to a depth", "[inspect][tools]") {
 }
 
 TEST_CASE("inspect tools: the wireframes open in Assimp", "[inspect][tools]") {
-    const kt::Mesh mesh = kt::sphere(16, 24, 1.0);
+    const common::Mesh mesh = kt::sphere(16, 24, 1.0);
     kt::TreePtr tree = sah_tree(mesh, 4);
     std::vector<kdrt_tools::DepthBox> boxes;
     std::string error;
@@ -197,7 +197,7 @@ TEST_CASE("inspect tools: the wireframes open in Assimp", "[inspect][tools]") {
 }
 
 TEST_CASE("inspect tools: outputs that cannot be written leave no file", "[inspect][tools]") {
-    const kt::Mesh mesh = kt::sphere(8, 12, 1.0);
+    const common::Mesh mesh = kt::sphere(8, 12, 1.0);
     kt::TreePtr tree = sah_tree(mesh, 4);
     std::vector<kdrt_tools::DepthBox> boxes;
     std::string error;
@@ -220,7 +220,7 @@ TEST_CASE("inspect tools: outputs that cannot be written leave no file", "[inspe
 }
 
 TEST_CASE("inspect tools: the picture shows the mesh and the root box", "[inspect][tools]") {
-    const kt::Mesh mesh = kt::sphere(16, 24, 1.0);
+    const common::Mesh mesh = kt::sphere(16, 24, 1.0);
     kt::TreePtr tree = sah_tree(mesh, 4);
     std::vector<kdrt_tools::DepthBox> boxes;
     std::string error;

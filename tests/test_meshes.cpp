@@ -18,9 +18,9 @@ TEST_CASE("shared meshes agree with the reference", "[meshes]") {
     for (size_t i = 0; i < files.size(); ++i) {
         const std::string name = std::filesystem::path(files[i]).filename().string();
         DYNAMIC_SECTION(name) {
-            kt::Mesh mesh;
+            common::Mesh mesh;
             std::string error;
-            bool loaded = kt::load_mesh(files[i], mesh, error);
+            bool loaded = common::load_mesh(files[i], mesh, error);
             INFO("loading " << files[i] << ": " << error);
             REQUIRE(loaded);
             mesh.name = name;

@@ -452,7 +452,7 @@ TEST_CASE("render: meshes are placed as the model says: largest side `size`, bot
 {
     kr::Scene scene;
     kr::MeshInstance m;
-    m.mesh = kt::torus(32, 16, 1.0, 0.35, 0.6);  // generated: no file
+    m.mesh = common::torus(32, 16, 1.0, 0.35, 0.6);  // generated: no file
     m.source = "generated torus";
     m.position = {1.5, -0.25, 3};
     m.size = 0.8;
@@ -469,7 +469,7 @@ TEST_CASE("render: meshes are placed as the model says: largest side `size`, bot
     CHECK(0.5 * (lo[2] + hi[2]) == Approx(3).margin(1e-6));
     // The torus's ring lies across x before the turn (its axis is y, tipped about x): a quarter
     // turn about y swaps the box's x and z extents.
-    const kt::Mesh before = kt::torus(32, 16, 1.0, 0.35, 0.6);
+    const common::Mesh before = common::torus(32, 16, 1.0, 0.35, 0.6);
     double blo[3] = {1e30, 1e30, 1e30}, bhi[3] = {-1e30, -1e30, -1e30};
     for (size_t i = 0; i < before.positions.size(); ++i)
         blo[i % 3] = std::min(blo[i % 3], double(before.positions[i])), bhi[i % 3] = std::max(bhi[i % 3], double(before.positions[i]));
@@ -487,7 +487,7 @@ TEST_CASE("render: interpolated normals on a tessellated sphere converge to the 
     // weighting on this irregular mesh (valence 4 at the octahedron's corners, 6 elsewhere) is
     // not quite, so the error falls in between: measured 0.0315 -> 0.0100 rad (x0.32) against
     // flat 0.120 -> 0.060 (x0.50), at 512 and 2048 triangles.
-    kt::Mesh octahedron;
+    common::Mesh octahedron;
     octahedron.positions = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1};
     octahedron.indices = {0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5};
     kr::Material mirror;
@@ -495,7 +495,7 @@ TEST_CASE("render: interpolated normals on a tessellated sphere converge to the 
 
     // Mean angle between the renderer's reflection and the exact sphere's over a grid of rays.
     const auto mean_error = [&](unsigned levels, bool interpolate) {
-        kt::Mesh ball = kt::subdivided(octahedron, levels);
+        common::Mesh ball = common::subdivided(octahedron, levels);
         for (size_t v = 0; v < ball.positions.size(); v += 3) {
             const float *q = &ball.positions[v];
             const double len = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2]);

@@ -1,8 +1,8 @@
 #include "test_support.hpp"
 
-#include "hard_cases.hpp"
-#include "random.hpp"
-#include "timing.hpp"
+#include "oracle/hard_cases.hpp"
+#include "common/random.hpp"
+#include "common/timing.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -18,6 +18,12 @@
 #include <thread>
 
 namespace kt {
+
+using common::Mesh;
+using common::Rng;
+using oracle::Agreement;
+using oracle::Oracle;
+using oracle::Reference;
 
 Mesh random_soup(uint32_t triangles, uint32_t seed) {
     Rng rng(seed);
@@ -49,7 +55,7 @@ Mesh grid(uint32_t nx, uint32_t ny, uint32_t seed) {
     return m;
 }
 
-Mesh sphere(uint32_t rings, uint32_t segments, double radius) { return uv_sphere(rings, segments, radius, false); }
+Mesh sphere(uint32_t rings, uint32_t segments, double radius) { return oracle::uv_sphere(rings, segments, radius, false); }
 
 Mesh translated(const Mesh &mesh, double dx, double dy, double dz) {
     Mesh m = mesh;
@@ -148,13 +154,13 @@ std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t s
 
 std::vector<kdrt_hit> trace_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
     std::vector<kdrt_hit> hits(rays.size());
-    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+    common::timed_parallel(rays.size(), common::all_cores(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
     return hits;
 }
 
 std::vector<unsigned char> occluded_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
     std::vector<unsigned char> occluded(rays.size());
-    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
+    common::timed_parallel(rays.size(), common::all_cores(), [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
     return occluded;
 }
 

@@ -4,8 +4,8 @@
 #pragma once
 
 #include "kdrt.h"
-#include "mesh_io.hpp"
-#include "reference.hpp"
+#include "common/mesh_io.hpp"
+#include "oracle/reference.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -16,11 +16,11 @@
 namespace kt {
 
 // Generated scenes (deterministic for a seed).
-Mesh random_soup(uint32_t triangles, uint32_t seed);                  // triangles of size ~1 in a 10^3 box
-Mesh grid(uint32_t nx, uint32_t ny, uint32_t seed);                   // indexed height field over integer x, y
-Mesh sphere(uint32_t rings, uint32_t segments, double radius);         // closed, indexed, centred at the origin
-Mesh translated(const Mesh &mesh, double dx, double dy, double dz);
-Mesh as_soup(const Mesh &indexed);                                     // same triangles, one vertex per corner
+common::Mesh random_soup(uint32_t triangles, uint32_t seed);                  // triangles of size ~1 in a 10^3 box
+common::Mesh grid(uint32_t nx, uint32_t ny, uint32_t seed);                   // indexed height field over integer x, y
+common::Mesh sphere(uint32_t rings, uint32_t segments, double radius);         // closed, indexed, centred at the origin
+common::Mesh translated(const common::Mesh &mesh, double dx, double dy, double dz);
+common::Mesh as_soup(const common::Mesh &indexed);                                     // same triangles, one vertex per corner
 
 // KDRT_MESH_DIR if that folder exists, else "" (the caller skips with a message).
 std::string shared_mesh_dir();
@@ -55,7 +55,7 @@ struct TreePtr {
     ~TreePtr() { kdrt_tree_free(tree); }
     kdrt_tree *get() const { return tree; }
 };
-TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_MEDIAN);
+TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_MEDIAN);
 
 // How many rays the reference suites trace: 100,000, or what KDRT_TEST_RAYS says.
 size_t reference_ray_count();
@@ -74,6 +74,6 @@ constexpr uint32_t kSahLeafSizes[] = {1, 4, 16};
 // brute_force_occluded_rays rays for (c); kdrt_intersect() always takes every ray.
 // Fails with CHECKs naming the leaf size and the first bad ray; WARNs a line of counts per leaf
 // size so the log shows exact / ambiguous / wrong for every scene.
-void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute_force_occluded_rays = SIZE_MAX);
+void check_scene(const common::Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute_force_occluded_rays = SIZE_MAX);
 
 }  // namespace kt

@@ -10,7 +10,7 @@
 //    while the naive origin org + t * dir does, and primary hits still agree with the oracle.
 // Ray counts follow KDRT_TEST_RAYS (kt::reference_ray_count(), 100,000 by default): the
 // watertight test traces ten times that many rays at each leaf size.
-#include "hard_cases.hpp"
+#include "oracle/hard_cases.hpp"
 #include "test_support.hpp"
 
 #include <catch2/catch.hpp>
@@ -37,7 +37,7 @@ const char *intersector_name(kdrt_intersector i) { return i == KDRT_INTERSECTOR_
 // integer triangles are often vertex coordinates); 0 tests every triangle.
 const uint32_t kWatertightLeafSizes[] = {0, 1, 4, 16};
 
-kt::TreePtr build_tree(const kt::Mesh &mesh, kdrt_builder builder, kdrt_intersector intersector, uint32_t leaf) {
+kt::TreePtr build_tree(const common::Mesh &mesh, kdrt_builder builder, kdrt_intersector intersector, uint32_t leaf) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
     options.builder = builder;
@@ -79,33 +79,33 @@ std::string hex_ray(const kdrt_ray &r) {
 }  // namespace
 
 TEST_CASE("watertight: the generated closed meshes are closed and their must-hit rays are well formed", "[hard][watertight]") {
-    for (const kt::Mesh &mesh : kt::closed_meshes(false)) {
+    for (const common::Mesh &mesh : oracle::closed_meshes(false)) {
         std::string why;
         INFO(mesh.name);
-        CHECK(kt::is_closed(mesh, &why));
+        CHECK(oracle::is_closed(mesh, &why));
         INFO(why);
-        const std::vector<kdrt_ray> rays = kt::rays_at_vertices_and_edges(mesh, 2000, 1);
+        const std::vector<kdrt_ray> rays = oracle::rays_at_vertices_and_edges(mesh, 2000, 1);
         REQUIRE(rays.size() == 2000);
         for (const kdrt_ray &r : rays) {
             REQUIRE(std::isfinite(r.org[0] + r.org[1] + r.org[2] + r.dir[0] + r.dir[1] + r.dir[2]));
             REQUIRE((r.dir[0] != 0 || r.dir[1] != 0 || r.dir[2] != 0));
         }
         // Deterministic for a seed.
-        const std::vector<kdrt_ray> again = kt::rays_at_vertices_and_edges(mesh, 2000, 1);
+        const std::vector<kdrt_ray> again = oracle::rays_at_vertices_and_edges(mesh, 2000, 1);
         CHECK(std::memcmp(rays.data(), again.data(), rays.size() * sizeof(kdrt_ray)) == 0);
     }
     // is_closed sees an open mesh and a hole.
-    kt::Mesh open = kt::grid(4, 4, 1);
-    CHECK_FALSE(kt::is_closed(open));
-    kt::Mesh holed = kt::closed_meshes(false).front();
+    common::Mesh open = kt::grid(4, 4, 1);
+    CHECK_FALSE(oracle::is_closed(open));
+    common::Mesh holed = oracle::closed_meshes(false).front();
     holed.indices.resize(holed.indices.size() - 3);
-    CHECK_FALSE(kt::is_closed(holed));
+    CHECK_FALSE(oracle::is_closed(holed));
     // The torus kdrt-bench and kdrt-render-mesh generate is closed, its seams shared, tilted or not.
     for (double tilt : {0.0, 0.6}) {
-        const kt::Mesh ring = kt::torus(12, 8, 1.0, 0.3, tilt);
+        const common::Mesh ring = common::torus(12, 8, 1.0, 0.3, tilt);
         CHECK(ring.vertex_count() == 96);
         CHECK(ring.triangle_count() == 192);
-        CHECK(kt::is_closed(ring));
+        CHECK(oracle::is_closed(ring));
     }
 }
 
@@ -117,15 +117,15 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
     // takes the same rays at leaf size 4 and the brute force's share at leaf size 0.
     const size_t total = 10 * kt::reference_ray_count();
     const double scale = double(kt::reference_ray_count()) / 100000.0;
-    std::vector<kt::Mesh> meshes = kt::closed_meshes(true);
-    const size_t generated = kt::closed_meshes(false).size();
+    std::vector<common::Mesh> meshes = oracle::closed_meshes(true);
+    const size_t generated = oracle::closed_meshes(false).size();
     REQUIRE(meshes.size() >= generated);
     if (meshes.size() == generated) WARN("no closed shared meshes (KDRT_MESH_DIR absent?): generated meshes only");
     // Scaled-down runs (the sanitizer build) leave out the shared meshes over 20,000 triangles,
     // whose builds and traversals would dominate them.
     if (scale < 1)
         meshes.erase(std::remove_if(meshes.begin() + std::ptrdiff_t(generated), meshes.end(),
-                                    [](const kt::Mesh &m) { return m.triangle_count() > 20000; }),
+                                    [](const common::Mesh &m) { return m.triangle_count() > 20000; }),
                      meshes.end());
 
     std::ostringstream log;
@@ -133,12 +133,12 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
         << "  (watertight: all leaf sizes; fast: leaf size 0 on the brute rays, 4 on all)\n"
         << "  mesh               triangles    rays   brute  watertight  fast 0  fast 4";
     size_t distinct = 0, traced = 0, fast_leaks = 0;
-    for (const kt::Mesh &mesh : meshes) {
+    for (const common::Mesh &mesh : meshes) {
         std::string why;
         INFO(mesh.name);
-        REQUIRE(kt::is_closed(mesh, &why));
+        REQUIRE(oracle::is_closed(mesh, &why));
         const size_t count = std::max<size_t>(total / meshes.size() + 1, 1000);
-        const std::vector<kdrt_ray> rays = kt::rays_at_vertices_and_edges(mesh, count, 0xC0FFEE);
+        const std::vector<kdrt_ray> rays = oracle::rays_at_vertices_and_edges(mesh, count, 0xC0FFEE);
         REQUIRE(rays.size() == count);
         distinct += count;
         const size_t brute = std::min(count, std::max<size_t>(size_t(2e6 * scale / mesh.triangle_count()), 100));
@@ -148,7 +148,7 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
             for (uint32_t leaf : kWatertightLeafSizes) {
                 const std::vector<kdrt_ray> &set = leaf == 0 ? brute_rays : rays;
                 kt::TreePtr tight = build_tree(mesh, builder, KDRT_INTERSECTOR_WATERTIGHT, leaf);
-                const kt::ErrorCounts w = kt::count_leaks(tight.get(), set);
+                const oracle::ErrorCounts w = oracle::count_leaks(tight.get(), set);
                 traced += w.rays;
                 tight_leaks += w.leaks;
                 INFO(builder_name(builder) << " builder, leaf size " << leaf << ", " << w.rays << " rays: " << w.leaks
@@ -157,7 +157,7 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
                 CHECK(w.rays == set.size());
                 if (leaf == 0 || leaf == 4) {
                     kt::TreePtr fast = build_tree(mesh, builder, KDRT_INTERSECTOR_FAST, leaf);
-                    (leaf == 0 ? fast_leaks_brute : fast_leaks_tree) += kt::count_leaks(fast.get(), set).leaks;
+                    (leaf == 0 ? fast_leaks_brute : fast_leaks_tree) += oracle::count_leaks(fast.get(), set).leaks;
                 }
             }
         fast_leaks += fast_leaks_brute + fast_leaks_tree;
@@ -181,7 +181,7 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
     // within the triangle's bounding box) or miss it. The watertight test shears the corners with the rounded
     // dir[kx] / dir[kz], so the projected triangle is a sliver a rounding wide rather than a
     // segment, and about 14% of in-plane rays that touch their triangle come out as hits there
-    // (found by the in_plane set of kt::hard_sets). Refusing those hits is no fix: the second half
+    // (found by the in_plane set of oracle::hard_sets). Refusing those hits is no fix: the second half
     // below is a ray that leaves the closed int_bumpy_box_10 through the edge (12,2,5)-(11,2,6)
     // shared by triangles 230 and 250, whose plane holds the ray; in the sheared coordinates it
     // lies inside 250's sliver and outside 230, so refusing in-plane hits lets it slip through.
@@ -198,7 +198,7 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
     };
     size_t in_plane_hits = 0;
     for (const Case &c : cases) {
-        kt::Mesh mesh;
+        common::Mesh mesh;
         mesh.name = "one_triangle";
         mesh.positions.assign(c.p, c.p + 9);
         double e1[3], e2[3];
@@ -208,7 +208,7 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
         const double off = n[0] * (c.ray.org[0] - c.p[0]) + n[1] * (c.ray.org[1] - c.p[1]) + n[2] * (c.ray.org[2] - c.p[2]);
         REQUIRE(along == 0);  // parallel to the plane, exactly
         REQUIRE(off == 0);    // and in it
-        const kt::Oracle oracle(mesh);
+        const oracle::Oracle oracle(mesh);
         CHECK(std::isnan(oracle.possible_t(c.ray, 0)));  // no crossing: only in-plane contact
         // The rule can fail: contact points off the segment are refused.
         CHECK_FALSE(oracle.in_plane_contact(c.ray, 0, 100.0));
@@ -229,8 +229,8 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
 
     // The second half: no leak where the ray leaves through an edge of a triangle whose plane
     // holds it (ray 17181 of rays_at_vertices_and_edges(int_bumpy_box_10, ..., 0xC0FFEE)).
-    const std::vector<kt::Mesh> closed = kt::closed_meshes(false);
-    const auto box = std::find_if(closed.begin(), closed.end(), [](const kt::Mesh &m) { return m.name == "int_bumpy_box_10"; });
+    const std::vector<common::Mesh> closed = oracle::closed_meshes(false);
+    const auto box = std::find_if(closed.begin(), closed.end(), [](const common::Mesh &m) { return m.name == "int_bumpy_box_10"; });
     REQUIRE(box != closed.end());
     const kdrt_ray out = kt::ray_of(5, 3, 10, 6.75f, -1, -4.75f);  // from inside, through (11.75, 2, 5.25) at t = 1
     {
@@ -260,17 +260,17 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
 TEST_CASE("hard sets: every answer agrees with the oracle and every leaf size answers as leaf size 0", "[hard]") {
     const auto start = std::chrono::steady_clock::now();
     const size_t per_set = std::max<size_t>(kt::reference_ray_count() / 5, 1000);
-    const std::vector<kt::HardSet> sets = kt::hard_sets(per_set, 2026);
+    const std::vector<oracle::HardSet> sets = oracle::hard_sets(per_set, 2026);
     REQUIRE(sets.size() >= 8);
     std::ostringstream log;
     log << "hard sets, " << per_set << " rays each and a tenth more at random; the worst over\n"
         << "  leaf sizes 0..64 (unlike: answers unlike leaf size 0's, summed)\n"
         << "  set                intersector  hits  exact  ambig  wrong  false  unlike";
-    for (const kt::HardSet &set : sets) {
+    for (const oracle::HardSet &set : sets) {
         INFO(set.name << ": " << set.mesh.triangle_count() << " triangles, " << set.rays.size() << " rays");
         REQUIRE(!set.rays.empty());
-        const kt::Oracle oracle(set.mesh);
-        const std::vector<kt::Reference> refs = kt::reference_all(oracle, set.rays);
+        const oracle::Oracle oracle(set.mesh);
+        const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, set.rays);
         for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
             for (kdrt_builder builder : kBuilders) {
                 std::vector<kdrt_hit> brute;
@@ -278,8 +278,8 @@ TEST_CASE("hard sets: every answer agrees with the oracle and every leaf size an
                 for (uint32_t leaf : kt::kLeafSizes) {
                     kt::TreePtr tree = build_tree(set.mesh, builder, intersector, leaf);
                     std::vector<kdrt_hit> hits;
-                    kt::Agreement tally;
-                    const kt::ErrorCounts e = kt::count_mismatches(tree.get(), oracle, refs, set.rays, &hits, &tally);
+                    oracle::Agreement tally;
+                    const oracle::ErrorCounts e = oracle::count_mismatches(tree.get(), oracle, refs, set.rays, &hits, &tally);
                     if (leaf == 0) brute = hits;
                     size_t unlike = 0, hit_now = 0;
                     std::string first_unlike;
@@ -326,20 +326,20 @@ TEST_CASE("far from the origin: spawned rays never hit the triangle they leave",
     const auto start = std::chrono::steady_clock::now();
     const size_t count = std::max<size_t>(kt::reference_ray_count() / 10, 1000);
     // Closed, open and soup scenes of size ~10 around the origin.
-    const std::vector<kt::Mesh> scenes = {kt::sphere(16, 24, 4.0), kt::grid(16, 16, 3), kt::random_soup(1000, 15)};
+    const std::vector<common::Mesh> scenes = {kt::sphere(16, 24, 4.0), kt::grid(16, 16, 3), kt::random_soup(1000, 15)};
     std::ostringstream log;
     log << "far from the origin: " << count << " primary rays per scene, 4 spawned per hit;\n"
         << "  wrong: primary / spawned rays unlike the oracle; self-hits summed over\n"
         << "  leaf sizes 0 (a twentieth of the rays), 1, 4, 16\n"
         << "  scene         offset scale  intersector  wrong  wrong2  self  naive  spawned";
     size_t naive_far[2] = {0, 0};  // naive self-hits at 1e5 and 1e7
-    for (const kt::Mesh &original : scenes)
+    for (const common::Mesh &original : scenes)
         for (double offset : {0.0, 1e3, 1e5, 1e7}) {
             // Far out the scene grows with its offset: at 1e7 a float ulp is 1, and a scene of size
             // 10 would collapse onto a few lattice points. At 1e-4 of the offset (1000 times larger
             // at 1e7, 10 times at 1e5) its corners keep their places to 1e-3 of its size.
             const double scale = std::max(1.0, offset * 1e-4);
-            const kt::Mesh mesh = kt::translated(original, offset, scale);
+            const common::Mesh mesh = oracle::translated(original, offset, scale);
             INFO(mesh.name << " (scale " << scale << ")");
             kdrt_triangles view = mesh.view();
             kdrt_aabb box;
@@ -350,8 +350,8 @@ TEST_CASE("far from the origin: spawned rays never hit the triangle they leave",
             kdrt_tree_free(probe);
             CHECK(report.degenerate_triangles == 0);  // the scaled scene is still a valid mesh
             const std::vector<kdrt_ray> rays = kt::random_rays(box, count, uint32_t(std::log10(offset + 1)) + 17);
-            const kt::Oracle oracle(mesh);
-            const std::vector<kt::Reference> refs = kt::reference_all(oracle, rays);
+            const oracle::Oracle oracle(mesh);
+            const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
             for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
                 for (kdrt_builder builder : kBuilders) {
                     // The secondary rays, spawned once from the leaf size 4 tree's hits (every leaf
@@ -359,20 +359,20 @@ TEST_CASE("far from the origin: spawned rays never hit the triangle they leave",
                     std::vector<kdrt_ray> spawned;
                     {
                         kt::TreePtr tree = build_tree(mesh, builder, intersector, 4);
-                        for (const kt::SpawnedRay &s : kt::spawn_rays(tree.get(), rays)) spawned.push_back(s.ray);
+                        for (const oracle::SpawnedRay &s : oracle::spawn_rays(tree.get(), rays)) spawned.push_back(s.ray);
                     }
-                    const std::vector<kt::Reference> spawned_refs = kt::reference_all(oracle, spawned);
+                    const std::vector<oracle::Reference> spawned_refs = oracle::reference_all(oracle, spawned);
                     size_t wrong = 0, wrong_spawned = 0, self = 0, naive = 0, spawned_count = 0;
                     for (uint32_t leaf : {0u, 1u, 4u, 16u}) {
                         // Leaf size 0 (every triangle for every ray) takes a twentieth of the rays.
                         const size_t n = leaf == 0 ? count / 20 : count;
                         const std::vector<kdrt_ray> some(rays.begin(), rays.begin() + std::ptrdiff_t(n));
-                        const std::vector<kt::Reference> some_refs(refs.begin(), refs.begin() + std::ptrdiff_t(n));
+                        const std::vector<oracle::Reference> some_refs(refs.begin(), refs.begin() + std::ptrdiff_t(n));
                         kt::TreePtr tree = build_tree(mesh, builder, intersector, leaf);
-                        const kt::ErrorCounts m = kt::count_mismatches(tree.get(), oracle, some_refs, some);
-                        const kt::ErrorCounts m2 = leaf == 0 ? kt::ErrorCounts() : kt::count_mismatches(tree.get(), oracle, spawned_refs, spawned);
-                        const kt::ErrorCounts s = kt::count_self_hits(tree.get(), some, kt::Spawn::kdrt);
-                        const kt::ErrorCounts nv = kt::count_self_hits(tree.get(), some, kt::Spawn::naive);
+                        const oracle::ErrorCounts m = oracle::count_mismatches(tree.get(), oracle, some_refs, some);
+                        const oracle::ErrorCounts m2 = leaf == 0 ? oracle::ErrorCounts() : oracle::count_mismatches(tree.get(), oracle, spawned_refs, spawned);
+                        const oracle::ErrorCounts s = oracle::count_self_hits(tree.get(), some, oracle::Spawn::kdrt);
+                        const oracle::ErrorCounts nv = oracle::count_self_hits(tree.get(), some, oracle::Spawn::naive);
                         wrong += m.mismatches, wrong_spawned += m2.mismatches, self += s.self_hits, naive += nv.self_hits;
                         spawned_count += s.rays;
                         if (offset == 1e5) naive_far[0] += nv.self_hits;

@@ -2,9 +2,9 @@
 // tools/construction_pictures.py. The tree is kdrt's own, read back with the inspection API.
 //
 //   kdrt-construction [TRIANGLES.txt] [--builder median|sah] [--leaf-size N] [--count N] [--seed S] -o OUT.json
-#include "atomic_file.hpp"  // kt::write_file_atomically
+#include "common/atomic_file.hpp"  // common::write_file_atomically
 #include "construction.hpp"
-#include "parse.hpp"  // kt::parse_count, kt::parse_size
+#include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "tree_inspect.hpp"
 
 #include <cstdio>
@@ -53,13 +53,13 @@ int main(int argc, char **argv)
             else if (b == "sah") builder = KDRT_BUILDER_SAH;
             else return fail("--builder wants median or sah, not '" + b + "'");
         } else if (arg == "--leaf-size" && has_value) {
-            if (!kt::parse_count(argv[++i], 1000000, leaf_size) || leaf_size == 0)
+            if (!common::parse_count(argv[++i], 1000000, leaf_size) || leaf_size == 0)
                 return fail(std::string("--leaf-size wants a whole number from 1, not '") + argv[i] + "'");
         } else if (arg == "--count" && has_value) {
-            if (!kt::parse_count(argv[++i], 10000, count) || count == 0)
+            if (!common::parse_count(argv[++i], 10000, count) || count == 0)
                 return fail(std::string("--count wants a whole number from 1 to 10000, not '") + argv[i] + "'");
         } else if (arg == "--seed" && has_value) {
-            if (!kt::parse_count(argv[++i], 0xFFFFFFFFul, seed))
+            if (!common::parse_count(argv[++i], 0xFFFFFFFFul, seed))
                 return fail(std::string("--seed wants a whole number, not '") + argv[i] + "'");
         } else if (arg == "-o" && has_value) {
             output = argv[++i];
@@ -84,7 +84,7 @@ int main(int argc, char **argv)
     if (output == "-") {
         std::fputs(json.c_str(), stdout);
     } else {
-        if (!kt::write_file_atomically(output, json, error)) return fail(error);
+        if (!common::write_file_atomically(output, json, error)) return fail(error);
         std::fprintf(stderr, "kdrt-construction: %zu triangles, %zu steps, %zu leaves -> %s\n", positions.size() / 9,
                      construction.steps.size(), construction.leaves.size(), output.c_str());
     }

@@ -1,5 +1,7 @@
 #include "construction.hpp"
 
+#include "common/random.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -34,19 +36,6 @@ void kdrt_centroid(const float c[9], float out[3])
 
 namespace {
 
-// splitmix64: a fixed sequence on every platform, unlike std's distributions.
-struct Random {
-    uint64_t state;
-    uint64_t next()
-    {
-        uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform(double lo, double hi) { return lo + (hi - lo) * double(next() >> 11) * 0x1.0p-53; }
-};
-
 // Writes a float so that reading it back gives the same float.
 void put_number(std::string &s, double x)
 {
@@ -79,14 +68,14 @@ void put_indices(std::string &s, const std::vector<uint32_t> &v)
 
 std::vector<float> random_triangles_2d(uint32_t count, uint64_t seed)
 {
-    Random random{seed};
+    common::Rng random = common::Rng::from_state(seed);
     std::vector<float> positions;
     while (positions.size() < size_t(count) * 9) {
-        const double cx = random.uniform(0.0, 10.0), cy = random.uniform(0.0, 10.0);
+        const double cx = random.range(0.0, 10.0), cy = random.range(0.0, 10.0);
         float t[9];
         for (int k = 0; k < 3; ++k) {
-            t[3 * k] = float(cx + random.uniform(-1.6, 1.6));
-            t[3 * k + 1] = float(cy + random.uniform(-1.6, 1.6));
+            t[3 * k] = float(cx + random.range(-1.6, 1.6));
+            t[3 * k + 1] = float(cy + random.range(-1.6, 1.6));
             t[3 * k + 2] = 0.0f;
         }
         // Slivers draw badly and say nothing: keep triangles of area at least 0.4.

@@ -4,7 +4,7 @@
 //
 //   kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json] [--boxes OUT.obj|OUT.ply]
 //                [--depth D] [--picture OUT.png] [--size WxH]
-#include "parse.hpp"  // kt::parse_count, kt::parse_size
+#include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "tree_inspect.hpp"
 
 #include <chrono>
@@ -59,10 +59,10 @@ int main(int argc, char **argv)
             if (builder_name != "sah" && builder_name != "median")
                 return fail("--builder wants median or sah, not '" + builder_name + "'");
         } else if (arg == "--leaf-size" && has_value) {
-            if (!kt::parse_count(argv[++i], KDRT_MAX_TRIANGLES, leaf_size))
+            if (!common::parse_count(argv[++i], KDRT_MAX_TRIANGLES, leaf_size))
                 return fail(std::string("--leaf-size wants a whole number, not '") + argv[i] + "'");
         } else if (arg == "--depth" && has_value) {
-            if (!kt::parse_count(argv[++i], KDRT_MAX_DEPTH, depth))
+            if (!common::parse_count(argv[++i], KDRT_MAX_DEPTH, depth))
                 return fail(std::string("--depth wants a whole number from 0 to 64, not '") + argv[i] + "'");
         } else if (arg == "--boxes" && has_value) {
             boxes_path = argv[++i];
@@ -70,7 +70,7 @@ int main(int argc, char **argv)
             picture_path = argv[++i];
         } else if (arg == "--size" && has_value) {
             const std::string size = argv[++i];
-            if (!kt::parse_size(size, 8192, width, height))
+            if (!common::parse_size(size, 8192, width, height))
                 return fail("--size wants WxH, each from 1 to 8192, not '" + size + "'");
         } else if (arg.size() > 1 && arg[0] == '-') {
             return fail("unknown option or missing value: '" + arg + "'\n" + usage);
@@ -90,22 +90,22 @@ int main(int argc, char **argv)
         return fail("--picture wants a file named .png, not '" + picture_path + "'");
 
     kdrt_tools::TreeReport report;
-    kt::Mesh mesh;
+    common::Mesh mesh;
     std::string error;
     if (mesh_path.empty()) {
         const std::string bunny =
             (std::filesystem::path(KDRT_MESH_DIR) / "common" / "stanford-bunny.obj").lexically_normal().string();
         std::error_code ec;
-        if (std::filesystem::is_regular_file(bunny, ec) && kt::load_mesh(bunny, mesh, error)) {
+        if (std::filesystem::is_regular_file(bunny, ec) && common::load_mesh(bunny, mesh, error)) {
             report.source = bunny + ", the default";
         } else {
             // Say why: no bunny at all, or one that would not load.
             report.source = "generated: no MESH given and " +
                             (error.empty() ? "no " + bunny : bunny + " did not load: " + error);
-            mesh = kt::torus(96, 48, 1.0, 0.35, 0.6);
+            mesh = common::torus(96, 48, 1.0, 0.35, 0.6);
         }
     } else {
-        if (!kt::load_mesh(mesh_path, mesh, error)) return fail("cannot read mesh '" + mesh_path + "': " + error);
+        if (!common::load_mesh(mesh_path, mesh, error)) return fail("cannot read mesh '" + mesh_path + "': " + error);
         report.source = mesh_path;
     }
     report.mesh = mesh.name;

@@ -14,7 +14,7 @@ PACKAGES=(
   libyaml-cpp-dev # kdrt-render's scene files (YAML, with line numbers for errors)
   libopenexr-dev  # kdrt-render's OpenEXR output and --reference input (linear half or float)
   libembree-dev   # Embree 3: only kdrt-bench's --compare embree, the peer speed is stated against
-  python3-matplotlib  # tools/plot_bench.py
+  python3-matplotlib  # bench/plot_bench.py
 )
 
 usage() {

@@ -1,6 +1,6 @@
 #include "tree_inspect.hpp"
-#include "atomic_file.hpp"  // kt::write_file_atomically
-#include "vec3.hpp"         // kt::Vec3
+#include "common/atomic_file.hpp"  // common::write_file_atomically
+#include "common/vec3.hpp"         // common::Vec3
 
 #include <stb_image_write.h>
 
@@ -42,7 +42,7 @@ std::string json_number(double x)
     return std::isfinite(x) ? format("%.10g", x) : "null";
 }
 
-using kt::Vec3;
+using common::Vec3;
 
 // A box's corners, corner k having bit 0 for x, 1 for y, 2 for z (0: min, 1: max), and its 12
 // edges as pairs of corners differing in one bit.
@@ -233,10 +233,10 @@ bool write_boxes(const std::vector<DepthBox> &boxes, const std::string &path, st
             text += line;
         }
     }
-    return kt::write_file_atomically(path, text, error);
+    return common::write_file_atomically(path, text, error);
 }
 
-bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
+bool write_boxes_picture(const common::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
                          int height, const std::string &path, std::string &error)
 {
     if (!ends_with(path, ".png")) {
@@ -312,7 +312,7 @@ bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std:
         error = "cannot encode the PNG (out of memory?)";
         return false;
     }
-    return kt::write_file_atomically(path, png, error);
+    return common::write_file_atomically(path, png, error);
 }
 
 }  // namespace kdrt_tools

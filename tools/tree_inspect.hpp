@@ -4,7 +4,7 @@
 #pragma once
 
 #include "kdrt.h"
-#include "mesh_io.hpp"
+#include "common/mesh_io.hpp"
 
 #include <cstdint>
 #include <map>
@@ -48,7 +48,7 @@ bool write_boxes(const std::vector<DepthBox> &boxes, const std::string &path, st
 
 // The mesh traced with kdrt rays (a headlight, as kdrt-render-mesh) and the boxes' edges drawn
 // over it, coloured by depth; a PNG written as write_boxes writes.
-bool write_boxes_picture(const kt::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
+bool write_boxes_picture(const common::Mesh &mesh, const kdrt_tree *tree, const std::vector<DepthBox> &boxes, int width,
                          int height, const std::string &path, std::string &error);
 
 

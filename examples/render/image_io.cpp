@@ -2,7 +2,7 @@
 // (bench/atomic_file.hpp): a temporary file beside the output, renamed over it once complete.
 #include "render.hpp"
 
-#include "atomic_file.hpp"  // kt::write_atomically, kt::write_file_atomically
+#include "common/atomic_file.hpp"  // common::write_atomically, common::write_file_atomically
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -48,7 +48,7 @@ float srgb8_to_linear(unsigned char v)
     return float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
 }
 
-// The PNG encoded in memory, then written whole by kt::write_file_atomically.
+// The PNG encoded in memory, then written whole by common::write_file_atomically.
 bool write_png(const std::string &path, const Image &image, std::string &error)
 {
     std::vector<unsigned char> rgb(image.rgb.size());
@@ -62,7 +62,7 @@ bool write_png(const std::string &path, const Image &image, std::string &error)
         error = "cannot write '" + path + "': cannot encode the PNG";
         return false;
     }
-    return kt::write_file_atomically(path, png, error);
+    return common::write_file_atomically(path, png, error);
 }
 
 bool write_exr(const std::string &tmp, const Image &image, bool exr_float, std::string &error)
@@ -146,7 +146,7 @@ bool write_image(const std::string &path, const Image &image, bool exr_float, st
         return false;
     }
     if (lower_extension(path) == ".png") return write_png(path, image, error);
-    return kt::write_atomically(path, [&](const std::string &tmp, std::string &reason) {
+    return common::write_atomically(path, [&](const std::string &tmp, std::string &reason) {
         return write_exr(tmp, image, exr_float, reason);
     }, error);
 }

@@ -1,6 +1,6 @@
 // kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
 // Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
-#include "parse.hpp"  // kt::parse_count, kt::parse_size
+#include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "render.hpp"
 #include "scene_file.hpp"
 
@@ -82,7 +82,7 @@ bool parse_double(const std::string &text, double &out)
 bool parse_size(const std::string &text, uint32_t &width, uint32_t &height)
 {
     uint32_t w = 0, h = 0;
-    if (!kt::parse_size(text, 16384, w, h) || uint64_t(w) * h > (uint64_t(1) << 26)) return false;
+    if (!common::parse_size(text, 16384, w, h) || uint64_t(w) * h > (uint64_t(1) << 26)) return false;
     width = w, height = h;
     return true;
 }
@@ -136,16 +136,16 @@ int run(int argc, char **argv)
         } else if (arg == "--threads") {
             const std::string v = value();
             uint64_t n = 0;
-            if (!kt::parse_count(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
+            if (!common::parse_count(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
             options.threads = unsigned(n);
         } else if (arg == "--seed") {
             const std::string v = value();
-            if (!kt::parse_count(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
+            if (!common::parse_count(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
         } else if (arg == "--animate") {
             animate = value();
         } else if (arg == "--frames") {
             const std::string v = value();
-            if (!kt::parse_count(v, 100000, frames) || frames == 0) throw UsageError{"bad --frames '" + v + "': expected 1..100000"};
+            if (!common::parse_count(v, 100000, frames) || frames == 0) throw UsageError{"bad --frames '" + v + "': expected 1..100000"};
             have_frames = true;
         } else if (arg == "--reference") {
             reference = value();

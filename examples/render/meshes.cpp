@@ -76,7 +76,7 @@ bool load_meshes(Scene &scene, std::string &error)
             else if (is_file(off)) path = off;
             else if (!is_dir(dir)) {
                 // No mesh folder at all: the generated stand-in, so the scene still renders.
-                m.mesh = kt::torus(64, 32, 1.0, 0.35, 0.6);
+                m.mesh = common::torus(64, 32, 1.0, 0.35, 0.6);
                 m.source = "generated torus (no mesh folder " + (dir.empty() ? std::string("configured") : dir) +
                            " for " + file + ")";
             } else {
@@ -92,8 +92,8 @@ bool load_meshes(Scene &scene, std::string &error)
         }
         if (!path.empty()) {
             std::string why;
-            kt::Mesh loaded;
-            if (!kt::load_mesh(path, loaded, why)) {
+            common::Mesh loaded;
+            if (!common::load_mesh(path, loaded, why)) {
                 error = "cannot load mesh " + path + ": " + why;
                 return false;
             }

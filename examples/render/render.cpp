@@ -8,7 +8,8 @@
 #include "kdrt.h"
 
 #include "render.hpp"
-#include "thread_scheduler.hpp"
+#include "common/random.hpp"
+#include "common/thread_scheduler.hpp"
 
 #include <unistd.h>
 
@@ -28,29 +29,14 @@ namespace {
 const double kPi = 3.14159265358979323846;
 const double kInf = std::numeric_limits<double>::infinity();
 
-// Per-pixel random numbers: PCG32 (O'Neill 2014) seeded by a splitmix64 hash of (seed, frame,
-// pixel index), so a pixel's samples do not depend on which thread renders it or when.
-uint64_t splitmix64(uint64_t x)
+// Per-pixel random numbers: the stream of a hash of (seed, frame, pixel index), so a pixel's
+// samples do not depend on which thread renders it or when.
+common::Rng pixel_rng(uint64_t seed, uint64_t frame, uint64_t pixel)
 {
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
+    using common::splitmix64;
+    return common::Rng::from_state(splitmix64(seed ^ splitmix64(frame ^ splitmix64(pixel))));
 }
-
-struct Rng {
-    uint64_t state;
-    Rng(uint64_t seed, uint64_t frame, uint64_t pixel) : state(splitmix64(seed ^ splitmix64(frame ^ splitmix64(pixel)))) {}
-    uint32_t next()
-    {
-        const uint64_t old = state;
-        state = old * 6364136223846793005ull + 1442695040888963407ull;
-        const uint32_t xorshifted = uint32_t(((old >> 18u) ^ old) >> 27u);
-        const uint32_t rot = uint32_t(old >> 59u);
-        return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
-    }
-    double uniform() { return next() * (1.0 / 4294967296.0); }  // [0, 1)
-};
+using common::Rng;
 
 struct Ray {
     Vec3 origin, dir;  // dir unit length
@@ -221,7 +207,7 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
     }
     hit.shading_normal = hit.normal;
     if (hit.kind == HitKind::mesh && sc.settings.enable_interpolation) {
-        const kt::Mesh &mesh = sc.meshes[size_t(hit.index)].mesh;
+        const common::Mesh &mesh = sc.meshes[size_t(hit.index)].mesh;
         const MeshData &md = meshes[size_t(hit.index)];
         const uint32_t t = hit.mesh_hit.triangle;
         const double b1 = hit.mesh_hit.u, b2 = hit.mesh_hit.v, b0 = 1 - b1 - b2;
@@ -454,12 +440,12 @@ bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error)
         if (bad_material(q.material)) { error = "a quad's material " + std::to_string(q.material) + " does not exist"; return false; }
     for (const MeshInstance &m : scene.meshes)
         if (bad_material(m.material)) { error = "a mesh's material " + std::to_string(m.material) + " does not exist"; return false; }
-    kb::ThreadScheduler scheduler(threads);
+    common::ThreadScheduler scheduler(threads);
     const auto start = std::chrono::steady_clock::now();
     for (const MeshInstance &mi : scene.meshes) {
         impl_->meshes.emplace_back();
         MeshData &md = impl_->meshes.back();
-        const kt::Mesh &mesh = mi.mesh;
+        const common::Mesh &mesh = mi.mesh;
         const kdrt_triangles view = mesh.view();
         kdrt_build_options options = kdrt_default_build_options();
         options.max_leaf_size = scene.settings.max_leaf_size;
@@ -599,7 +585,7 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
             for (uint32_t y = y0; y < std::min(H, y0 + tile); ++y)
                 for (uint32_t x = x0; x < std::min(W, x0 + tile); ++x) {
                     const uint64_t pixel = uint64_t(y) * W + x;
-                    Rng rng(options.seed, options.frame, pixel);
+                    Rng rng = pixel_rng(options.seed, options.frame, pixel);
                     Vec3 sum;
                     for (uint32_t s = 0; s < st.nsamples; ++s) {
                         // One sample: the pixel's centre; more: jittered over the pixel.

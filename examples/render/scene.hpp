@@ -4,8 +4,8 @@
 // (presets.cpp) and scene files (scene_file.cpp) fill it, the renderer (render.cpp) reads it.
 #pragma once
 
-#include "mesh_io.hpp"  // kt::Mesh
-#include "vec3.hpp"     // kt::Vec3
+#include "common/mesh_io.hpp"  // common::Mesh
+#include "common/vec3.hpp"     // common::Vec3
 
 #include <cmath>
 #include <cstdint>
@@ -14,12 +14,12 @@
 
 namespace kr {
 
-// The shared double vector (bench/vec3.hpp), and its functions, as kr's own.
-using kt::Vec3;
-using kt::cross;
-using kt::dot;
-using kt::length;
-using kt::normalize;
+// The shared double vector (common/vec3.hpp), and its functions, as kr's own.
+using common::Vec3;
+using common::cross;
+using common::dot;
+using common::length;
+using common::normalize;
 
 // The original's global settings, by their names (--set KEY=VALUE, a scene file's "settings").
 struct Settings {
@@ -81,7 +81,7 @@ struct Quad {
 // box's bottom centre sits at `position`.
 struct MeshInstance {
     std::string file;        // "" keeps `mesh` as given (a generated stand-in)
-    kt::Mesh mesh;           // filled by the loader, in world space after placement
+    common::Mesh mesh;           // filled by the loader, in world space after placement
     std::string source;      // what was used, for the tool to say: a path, or "generated torus"
     Vec3 position;
     double size = 1;

@@ -420,7 +420,7 @@ bool Reader::read_objects(const Fields &top, Scene &scene, const std::map<std::s
             if (!generated->IsScalar() || generated->Scalar() != "torus")
                 return fail(*generated, "mesh 'generated' must be torus, got " + describe(*generated));
             // The same stand-in torus kdrt-render-mesh and kdrt-bench generate; placement rescales it.
-            m.mesh = kt::torus(96, 48, 1.0, 0.35);
+            m.mesh = common::torus(96, 48, 1.0, 0.35);
             m.source = "generated torus";
         } else {
             return fail(f.map, "mesh needs 'file' (a mesh file) or 'generated' (torus)");

@@ -1,7 +1,7 @@
 // The original's settings by name: --set KEY=VALUE and scene files' "settings" both come here.
 #include "scene.hpp"
 
-#include "parse.hpp"  // kt::parse_count
+#include "common/parse.hpp"  // common::parse_count
 
 #include <cctype>
 #include <cerrno>
@@ -53,19 +53,19 @@ bool apply_setting(Scene &scene, const std::string &key, const std::string &valu
     std::string expected;
     if (k == "NSAMPLES") {
         uint32_t n = 0;
-        ok = kt::parse_count(value, 65536, n) && n > 0;
+        ok = common::parse_count(value, 65536, n) && n > 0;
         expected = "an integer from 1 to 65536";
         if (ok) s.nsamples = n;
     }
-    else if (k == "MAX_BOUNCES") { ok = kt::parse_count(value, 64, s.max_bounces); expected = "an integer from 0 to 64"; }
-    else if (k == "SHADOW_RAYS") { ok = kt::parse_count(value, 4096, s.shadow_rays); expected = "an integer from 0 (no shadows) to 4096"; }
+    else if (k == "MAX_BOUNCES") { ok = common::parse_count(value, 64, s.max_bounces); expected = "an integer from 0 to 64"; }
+    else if (k == "SHADOW_RAYS") { ok = common::parse_count(value, 4096, s.shadow_rays); expected = "an integer from 0 (no shadows) to 4096"; }
     else if (k == "PHONG") { ok = parse_bool(value, s.phong); expected = "true or false"; }
     else if (k == "ENABLE_MIRROR") { ok = parse_bool(value, s.enable_mirror); expected = "true or false"; }
     else if (k == "ENABLE_GLASS") { ok = parse_bool(value, s.enable_glass); expected = "true or false"; }
     else if (k == "AIR_INDEX_MEDIUM") { ok = parse_number(value, 1e-3, 100, s.air_index_medium); expected = "an index of refraction from 0.001 to 100"; }
     else if (k == "MESH") { ok = !value.empty(); if (ok) s.mesh = value; expected = "a mesh name (stanford-bunny, ...) or a file path"; }
     else if (k == "ENABLE_INTERPOLATION") { ok = parse_bool(value, s.enable_interpolation); expected = "true or false"; }
-    else if (k == "MAX_LEAF_SIZE") { ok = kt::parse_count(value, 1u << 20, s.max_leaf_size); expected = "an integer from 0 (no tree) to 1048576"; }
+    else if (k == "MAX_LEAF_SIZE") { ok = common::parse_count(value, 1u << 20, s.max_leaf_size); expected = "an integer from 0 (no tree) to 1048576"; }
     else if (k == "ENABLE_TEXTURES") { ok = parse_bool(value, s.enable_textures); expected = "true or false"; }
     else if (k == "FRESNEL") { ok = parse_bool(value, s.fresnel); expected = "true or false"; }
     else if (k == "GLASS_IOR") {

@@ -11,7 +11,7 @@
 #include <thread>
 #include <vector>
 
-namespace kb {
+namespace common {
 
 class ThreadScheduler {
 public:
@@ -45,4 +45,4 @@ private:
     unsigned threads_;
 };
 
-}  // namespace kb
+}  // namespace common

@@ -1,9 +1,9 @@
 #!/usr/bin/python3
 """Plots MRays/s against triangle count for kdrt's SAH and median trees and Embree, on primary
-and on diffuse rays, from the CSVs tools/bench_table.py reads (kdrt-bench --builder median,sah
+and on diffuse rays, from the CSVs bench/bench_table.py reads (kdrt-bench --builder median,sah
 --compare embree, a primary and a diffuse run).
 
-usage: tools/plot_speed.py --primary CSV [CSV ...] --diffuse CSV [CSV ...] [-o PREFIX]
+usage: bench/plot_speed.py --primary CSV [CSV ...] --diffuse CSV [CSV ...] [-o PREFIX]
                            [--leaf-size N] [--sah-costs KT:KI:EB] [--min-triangles N]
 
 Writes PREFIX.png and PREFIX.svg (PREFIX defaults to the first primary CSV's path without .csv,

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-namespace kt {
+namespace common {
 
 struct Vec3 {
     double x = 0, y = 0, z = 0;
@@ -23,4 +23,4 @@ inline Vec3 normalize(Vec3 a)
     return len > 0 ? (1.0 / len) * a : a;
 }
 
-}  // namespace kt
+}  // namespace common

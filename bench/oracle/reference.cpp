@@ -1,11 +1,13 @@
-#include "reference.hpp"
-#include "timing.hpp"
+#include "oracle/reference.hpp"
+#include "common/timing.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
-namespace kt {
+namespace oracle {
+
+using common::Mesh;
 
 Oracle::Oracle(const Mesh &mesh) {
     uint32_t n = mesh.triangle_count();
@@ -223,8 +225,8 @@ void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, 
 
 std::vector<Reference> reference_all(const Oracle &oracle, const std::vector<kdrt_ray> &rays) {
     std::vector<Reference> refs(rays.size());
-    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { refs[i] = oracle.trace(rays[i]); });
+    common::timed_parallel(rays.size(), common::all_cores(), [&](size_t i) { refs[i] = oracle.trace(rays[i]); });
     return refs;
 }
 
-}  // namespace kt
+}  // namespace oracle

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Renders presets at increasing samples per pixel and plots RMSE against render time (log-log).
 
-usage: tools/rmse_vs_time.py [--presets A,B] [--spp 1,2,4,...] [--reference-spp N] [--size WxH]
+usage: examples/render/rmse_vs_time.py [--presets A,B] [--spp 1,2,4,...] [--reference-spp N] [--size WxH]
                              [--threads N] [--set KEY=VALUE]... [--renderer PATH] [-o DIR]
 
 For each preset (default PHASE_4_REFRACTION and PICTURE) it renders a reference EXR at

@@ -4,31 +4,31 @@
 #pragma once
 
 #include "kdrt.h"
-#include "mesh_io.hpp"
-#include "reference.hpp"
+#include "common/mesh_io.hpp"
+#include "oracle/reference.hpp"
 
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
-namespace kt {
+namespace oracle {
 
 // Closed surfaces (every edge shared by exactly two triangles, see is_closed): generated spheres
 // (float coordinates), meshes with small integer coordinates (so aims at their vertices and at
 // dyadic points of their edges are exact), and, when include_shared is true, the meshes of
 // ../shared/meshes (KDRT_MESH_DIR, seed/ and common/) that pass is_closed, largest last. Loading
 // those takes a few seconds; files that are missing or open are skipped silently.
-std::vector<Mesh> closed_meshes(bool include_shared);
+std::vector<common::Mesh> closed_meshes(bool include_shared);
 
 // A closed UV sphere centred at the origin: single-vertex poles, `rings` bands of `segments`
 // quads (two triangles each); integer: every coordinate rounded to a whole number.
-Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer);
+common::Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer);
 
 // True when every edge, with vertices matched by equal coordinates (as the watertight test
 // matches them), belongs to exactly two triangles and no triangle has zero area. Otherwise false,
 // with the reason in *why when given.
-bool is_closed(const Mesh &mesh, std::string *why = nullptr);
+bool is_closed(const common::Mesh &mesh, std::string *why = nullptr);
 
 // Rays that must hit: each is aimed at one of the closed mesh's vertices or at a point on one of
 // its edges (exactly for integer meshes; else the float nearest such a point) and starts either
@@ -38,7 +38,7 @@ bool is_closed(const Mesh &mesh, std::string *why = nullptr);
 // is a leak. tmin = 0, tmax = infinity, dir = target - origin (the target is at t = 1).
 // Inside points are found by a double-precision parity test and are kept 1e-4 of the box's
 // diagonal (integer meshes: 0.25 and integer coordinates) away from every triangle.
-std::vector<kdrt_ray> rays_at_vertices_and_edges(const Mesh &closed, size_t count, uint64_t seed);
+std::vector<kdrt_ray> rays_at_vertices_and_edges(const common::Mesh &closed, size_t count, uint64_t seed);
 
 // The hard placements of the tests as ray sets over their own small scenes, about rays_per_set
 // rays each: "split_planes_grid" / "split_planes_soup" (rays lying in every plane the median
@@ -52,10 +52,10 @@ std::vector<kdrt_ray> rays_at_vertices_and_edges(const Mesh &closed, size_t coun
 // triangles, aimed inside them and at their edges), "needles_tiny" (needle triangles and
 // triangles down to 1e-6 across), "coplanar_overlap" (stacks of coplanar overlapping triangles,
 // including the same triangle with rotated and reversed corners). Every answer is to be checked
-// against the double-precision oracle (kt::Oracle; count_mismatches).
+// against the double-precision oracle (oracle::Oracle; count_mismatches).
 struct HardSet {
     std::string name;
-    Mesh mesh;
+    common::Mesh mesh;
     std::vector<kdrt_ray> rays;
 };
 std::vector<HardSet> hard_sets(size_t rays_per_set, uint64_t seed);
@@ -63,7 +63,7 @@ std::vector<HardSet> hard_sets(size_t rays_per_set, uint64_t seed);
 // `mesh` scaled by `scale` about the centre of its box, then moved by `offset` along (1, 1, 1),
 // rounded to float. Far out, keep the scene large against a float ulp there (at 1e7 the ulp is 1):
 // scale by about offset * 1e-4 so its triangles stay triangles.
-Mesh translated(const Mesh &mesh, double offset, double scale);
+common::Mesh translated(const common::Mesh &mesh, double offset, double scale);
 
 // Error counts of one tree over one ray set.
 struct ErrorCounts {
@@ -105,4 +105,4 @@ ErrorCounts count_mismatches(const kdrt_tree *tree, const Oracle &oracle, const 
                              const std::vector<kdrt_ray> &rays, std::vector<kdrt_hit> *hits = nullptr,
                              Agreement *tally = nullptr);
 
-}  // namespace kt
+}  // namespace oracle

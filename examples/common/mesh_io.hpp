@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-namespace kt {
+namespace common {
 
 struct Mesh {
     std::string name;
@@ -34,4 +34,4 @@ Mesh subdivided(const Mesh &mesh, unsigned levels);
 // radians about the x axis (positive tips the far side, -z, up). Named "generated torus".
 Mesh torus(uint32_t rings, uint32_t sides, double major, double minor, double tilt = 0);
 
-}  // namespace kt
+}  // namespace common

@@ -7,7 +7,7 @@
 #include <thread>
 #include <vector>
 
-namespace kb {
+namespace common {
 
 struct Stopwatch {
     std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
@@ -36,4 +36,4 @@ double timed_parallel(size_t count, unsigned threads, Body &&body) {
     return clock.ms();
 }
 
-}  // namespace kb
+}  // namespace common

@@ -1,6 +1,6 @@
-#include "hard_cases.hpp"
-#include "random.hpp"
-#include "timing.hpp"
+#include "oracle/hard_cases.hpp"
+#include "common/random.hpp"
+#include "common/timing.hpp"
 
 #include <algorithm>
 #include <array>
@@ -17,7 +17,10 @@
 #define KDRT_MESH_DIR ""
 #endif
 
-namespace kt {
+namespace oracle {
+
+using common::Mesh;
+using common::Rng;
 
 namespace {
 
@@ -830,7 +833,7 @@ ErrorCounts count_leaks(const kdrt_tree *tree, const std::vector<kdrt_ray> &must
     counts.rays = must_hit.size();
     std::atomic<size_t> leaks{0};
     std::atomic<size_t> first{SIZE_MAX};
-    kb::timed_parallel(must_hit.size(), kb::all_cores(), [&](size_t i) {
+    common::timed_parallel(must_hit.size(), common::all_cores(), [&](size_t i) {
         kdrt_hit h;
         if (!kdrt_intersect(tree, &must_hit[i], &h)) {
             ++leaks;
@@ -847,7 +850,7 @@ std::vector<SpawnedRay> spawn_rays(const kdrt_tree *tree, const std::vector<kdrt
     const int per_hit = 4;
     std::vector<SpawnedRay> slots(rays.size() * per_hit);
     std::vector<unsigned char> used(slots.size(), 0);
-    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) {
+    common::timed_parallel(rays.size(), common::all_cores(), [&](size_t i) {
         kdrt_hit h;
         if (!kdrt_intersect(tree, &rays[i], &h)) return;
         float point[3], normal[3];
@@ -880,7 +883,7 @@ std::vector<SpawnedRay> spawn_rays(const kdrt_tree *tree, const std::vector<kdrt
 ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, Spawn spawn) {
     const std::vector<SpawnedRay> spawned = spawn_rays(tree, rays, spawn);
     std::vector<kdrt_hit> hits(spawned.size());
-    kb::timed_parallel(spawned.size(), kb::all_cores(), [&](size_t j) { kdrt_intersect(tree, &spawned[j].ray, &hits[j]); });
+    common::timed_parallel(spawned.size(), common::all_cores(), [&](size_t j) { kdrt_intersect(tree, &spawned[j].ray, &hits[j]); });
     ErrorCounts counts;
     counts.rays = spawned.size();
     for (size_t j = 0; j < spawned.size(); ++j) {
@@ -898,7 +901,7 @@ ErrorCounts count_self_hits(const kdrt_tree *tree, const std::vector<kdrt_ray> &
 ErrorCounts count_mismatches(const kdrt_tree *tree, const Oracle &oracle, const std::vector<Reference> &refs,
                              const std::vector<kdrt_ray> &rays, std::vector<kdrt_hit> *hits_out, Agreement *tally_out) {
     std::vector<kdrt_hit> hits(rays.size());
-    kb::timed_parallel(rays.size(), kb::all_cores(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+    common::timed_parallel(rays.size(), common::all_cores(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
     ErrorCounts counts;
     Agreement tally;
     for (size_t i = 0; i < rays.size() && i < refs.size(); ++i) {
@@ -914,4 +917,4 @@ ErrorCounts count_mismatches(const kdrt_tree *tree, const Oracle &oracle, const 
     return counts;
 }
 
-}  // namespace kt
+}  // namespace oracle

@@ -5,7 +5,7 @@
 #include <functional>
 #include <string>
 
-namespace kt {
+namespace common {
 
 // Creates or replaces `path` once `write` has filled a temporary file beside it (write gets the
 // temporary's name; it returns false with a message on failure). The temporary is then renamed
@@ -18,4 +18,4 @@ bool write_atomically(const std::string &path,
 // The same for bytes already in memory (an encoded PNG, a JSON or OBJ text).
 bool write_file_atomically(const std::string &path, const std::string &bytes, std::string &error);
 
-}  // namespace kt
+}  // namespace common

@@ -2,7 +2,7 @@
 """Plots a kdrt-bench --accuracy CSV: speed against errors for each intersector, and the errors
 by kind, summed over the scenes of each ray set.
 
-usage: tools/plot_accuracy.py ACCURACY.csv [-o PREFIX] [--markdown]
+usage: bench/plot_accuracy.py ACCURACY.csv [-o PREFIX] [--markdown]
 
 Writes PREFIX.png and PREFIX.svg (PREFIX defaults to the CSV's path without .csv). With
 --markdown, also prints the summary table (one row per set and intersector) as Markdown on

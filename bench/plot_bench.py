@@ -2,7 +2,7 @@
 """Plots a kdrt-bench CSV: time against max leaf size (log-log, like the original report's
 figure), speedup over leaf size 0, and speed against error (kdrt beside Embree).
 
-usage: tools/plot_bench.py BENCH.csv [-o PREFIX]
+usage: bench/plot_bench.py BENCH.csv [-o PREFIX]
 
 Writes PREFIX-elapsed.{png,svg}, PREFIX-speedup.{png,svg} and PREFIX-speed-vs-error.{png,svg}
 (PREFIX defaults to the CSV's path without .csv). Needs Debian's python3-matplotlib.

@@ -4,7 +4,7 @@ set -euo pipefail
 
 usage() {
   cat <<USAGE
-usage: bash tools/frames_to_video.sh FRAMES OUT.mp4 [--fps N]
+usage: bash examples/render/frames_to_video.sh FRAMES OUT.mp4 [--fps N]
 
 FRAMES names the frames as kdrt-render was told to write them: the -o path (anim.png: frames
 anim-0000.png, anim-0001.png, ...) or that path without its extension (anim). The frames are
@@ -20,7 +20,7 @@ Needs ffmpeg (optional for kdrt, not installed by tools/setup.sh: apt-get instal
 The environment variable FFMPEG names another ffmpeg binary.
 
 Example: kdrt-render --preset PHASE_4_REFRACTION --animate GLASS_IOR=1.0:2.0 --frames 180 -o ior.png
-         bash tools/frames_to_video.sh ior.png ior.mp4
+         bash examples/render/frames_to_video.sh ior.png ior.mp4
 USAGE
 }
 

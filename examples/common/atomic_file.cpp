@@ -1,4 +1,4 @@
-#include "atomic_file.hpp"
+#include "common/atomic_file.hpp"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <cstring>
 
-namespace kt {
+namespace common {
 
 bool write_atomically(const std::string &path,
                       const std::function<bool(const std::string &temporary, std::string &error)> &write,
@@ -56,4 +56,4 @@ bool write_file_atomically(const std::string &path, const std::string &bytes, st
     }, error);
 }
 
-}  // namespace kt
+}  // namespace common

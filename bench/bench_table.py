@@ -3,13 +3,13 @@
 the CSVs kdrt-bench writes with --builder median,sah --compare embree, and which of issue 5's
 targets the figures meet.
 
-usage: tools/bench_table.py --primary CSV [CSV ...] --diffuse CSV [CSV ...]
+usage: bench/bench_table.py --primary CSV [CSV ...] --diffuse CSV [CSV ...]
                             [--leaf-size N] [--sah-costs KT:KI:EB] [--target-meshes LIST]
 
 --primary takes the CSVs of primary-ray runs (kdrt-bench without --rays), --diffuse those of
 --rays diffuse runs; a mesh may appear in either or both. Per mesh, the SAH and median rows of one
 max leaf size (default 4) and the Embree rows are compared. Repetitions (kdrt-bench --repeat)
-give several rows for a mesh and builder; each figure is their median, as tools/plot_bench.py
+give several rows for a mesh and builder; each figure is their median, as bench/plot_bench.py
 takes it. Build times are the median over the rows of both kinds of run (the same trees are
 built in each). Columns:
 
@@ -220,7 +220,7 @@ def targets(summary, target_meshes):
 
 
 def add_input_arguments(parser):
-    """The options that say which CSVs and rows to read (tools/plot_speed.py takes them too)."""
+    """The options that say which CSVs and rows to read (bench/plot_speed.py takes them too)."""
     parser.add_argument("--primary", nargs="+", required=True, metavar="CSV", help="kdrt-bench CSVs of primary rays")
     parser.add_argument("--diffuse", nargs="+", default=[], metavar="CSV", help="kdrt-bench CSVs of --rays diffuse")
     parser.add_argument("--leaf-size", type=int, default=4, help="max leaf size of the kd-tree rows (default 4)")
@@ -240,7 +240,7 @@ def parse_args(argv=None):
 
 
 def load_summary(args):
-    """The table's figures from the parsed arguments (tools/plot_speed.py reads them too)."""
+    """The table's figures from the parsed arguments (bench/plot_speed.py reads them too)."""
     rows = load(args.primary, "primary") + load(args.diffuse, "diffuse")
     if not rows:
         sys.exit(f"{TOOL}: the CSVs hold no rows")

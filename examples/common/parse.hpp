@@ -8,7 +8,7 @@
 #include <string>
 #include <type_traits>
 
-namespace kt {
+namespace common {
 
 // A whole number in [0, max]: decimal digits only (no sign, no space, nothing after them).
 // out is written only on success.
@@ -38,4 +38,4 @@ bool parse_size(const std::string &text, typename std::common_type<Int>::type ma
     return true;
 }
 
-}  // namespace kt
+}  // namespace common

@@ -3,14 +3,14 @@
 #pragma once
 
 #include "kdrt.h"
-#include "mesh_io.hpp"
+#include "common/mesh_io.hpp"
 
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
-namespace kt {
+namespace oracle {
 
 struct Reference {
     bool sure_hit = false;          // some triangle is hit well inside its edges and the range
@@ -33,7 +33,7 @@ public:
     // (grazing rays, slivers) the tolerance grows in proportion.
     static constexpr double kWellConditioned = 40;
 
-    explicit Oracle(const Mesh &mesh);
+    explicit Oracle(const common::Mesh &mesh);
     Reference trace(const kdrt_ray &ray) const;
     // t at which the ray meets the triangle's plane inside the barycentric margin and the range
     // (both widened by their tolerances, so t may be a hair below 0), or NaN.
@@ -74,4 +74,4 @@ void check_hit(const Oracle &oracle, const Reference &ref, const kdrt_ray &ray, 
 // Reference for every ray, on all cores.
 std::vector<Reference> reference_all(const Oracle &oracle, const std::vector<kdrt_ray> &rays);
 
-}  // namespace kt
+}  // namespace oracle

@@ -1,4 +1,4 @@
-#include "mesh_io.hpp"
+#include "common/mesh_io.hpp"
 
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <unordered_map>
 
-namespace kt {
+namespace common {
 
 kdrt_triangles Mesh::view() const {
     kdrt_triangles v{};
@@ -182,4 +182,4 @@ Mesh torus(uint32_t rings, uint32_t sides, double major, double minor, double ti
     return m;
 }
 
-}  // namespace kt
+}  // namespace common

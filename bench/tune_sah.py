@@ -4,13 +4,13 @@ empty bonus EB) with kdrt-bench, on primary and on diffuse rays, and prints a Ma
 setting, the geometric mean over the meshes of MRays/s (primary, diffuse), build ms and bytes per
 triangle, each also relative to the best setting.
 
-usage: tools/tune_sah.py [options] MESH_OR_FOLDER ...
-       tools/tune_sah.py --from PRIMARY.csv DIFFUSE.csv
+usage: bench/tune_sah.py [options] MESH_OR_FOLDER ...
+       bench/tune_sah.py --from PRIMARY.csv DIFFUSE.csv
 
 It runs kdrt-bench twice (primary rays, then --rays diffuse), each run building every mesh once
 per setting (--builder sah --sah-costs GRID --leaf-sizes 4), tracing on one thread. Repetitions
 (--repeat) give several rows per mesh and setting; each figure is their median, as
-tools/plot_bench.py takes it. Build ms is the median over the rows of both runs. Mismatches
+bench/plot_bench.py takes it. Build ms is the median over the rows of both runs. Mismatches
 (summed over both runs) must be 0 everywhere; a setting with any is marked.
 
 The default grid holds pbrt-v3's constants (1:80:0.5), Wald & Havran's (15:20:0.2) and kdrt.h's
