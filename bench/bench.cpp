@@ -481,7 +481,7 @@ namespace {
 kdrt_tree *build_tree(const common::Mesh &mesh, kdrt_intersector intersector, std::string &error) {
     const kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
-    options.builder = KDRT_BUILDER_MEDIAN;  // README's accuracy table: a median tree
+    options.builder = KDRT_BUILDER_MEDIAN;  // bench/README.md's accuracy table: a median tree
     options.intersector = intersector;
     kdrt_tree *tree = nullptr;
     kdrt_build_report report;

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""Prints the README's table of kdrt's SAH builder against Embree and the median builder, from
-the CSVs kdrt-bench writes with --builder median,sah --compare embree, and which of issue 5's
+"""Prints bench/README.md's table of kdrt's SAH builder against Embree and the median builder, from
+the CSVs kdrt-bench writes with --builder median,sah --compare embree, and which of the bench's
 targets the figures meet.
 
 usage: bench/bench_table.py --primary CSV [CSV ...] --diffuse CSV [CSV ...]
@@ -21,10 +21,10 @@ built in each). Columns:
   SAH over median      the SAH tree's MRays/s over the median tree's, primary / diffuse
   Mismatches           summed over every row used (SAH, median and Embree, both kinds)
 
-Under the table, a line says which of issue 5's targets are met: traversal at least 0.5 times
-Embree's MRays/s on primary and on diffuse rays and a build at most 3 times Embree's, on the
-target meshes (default: STANFORD-BUNNY, OGRE and every mesh of a million triangles or more, as
-the issue names them); at most 80 bytes per triangle on every mesh of at least 1,000 triangles
+Under the table, a line says which of the bench's targets are met: traversal at least 0.5
+times Embree's MRays/s on primary and on diffuse rays and a build at most 3 times Embree's, on
+the target meshes (default: STANFORD-BUNNY, OGRE and every mesh of a million triangles or
+more); at most 80 bytes per triangle on every mesh of at least 1,000 triangles
 (below that the tree's fixed header, about 200 bytes, dominates: 107 bytes per triangle for
 a 3-triangle mesh says nothing of the layout), and no mismatch on every mesh.
 """
@@ -168,7 +168,7 @@ def is_target(s, target_meshes):
 
 
 def targets(summary, target_meshes):
-    """One line: each of issue 5's targets, met or missed, with the worst figure and its mesh."""
+    """One line: each of the bench's targets, met or missed, with the worst figure and its mesh."""
     chosen = [s for s in summary if is_target(s, target_meshes)]
     # Target meshes the CSVs lack: no figure, so their targets cannot be shown to be met.
     if target_meshes is None:
@@ -215,7 +215,7 @@ def targets(summary, target_meshes):
     else:
         bad = ", ".join(f"{s['mesh']} {s['mismatches']}" for s in summary if s["mismatches"])
         parts.append(f"0 mismatches: missed ({mismatches} in {rows} rows: {bad})")
-    return (f"Issue 5 targets, {met} of 5 met (traversal and build on {names}; memory on every mesh of "
+    return (f"Targets: {met} of 5 met (traversal and build on {names}; memory on every mesh of "
             f"{MEMORY_MIN_TRIANGLES:,} triangles or more; mismatches on every mesh): " + "; ".join(parts) + ".")
 
 

@@ -1,6 +1,6 @@
 // kdrt-bench: the original course ray tracer's leaf-size benchmark, with an error count beside
 // every timing and Embree measured in the same run; with --accuracy, speed beside the error counts
-// of each ray/triangle test on the frame and the hard-case ray sets. See --help and README.md.
+// of each ray/triangle test on the frame and the hard-case ray sets. See --help and bench/README.md.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 

@@ -3,7 +3,7 @@
 // (primary rays that hit the mesh, in pixel order and shuffled; bounces that leave the mesh and
 // bounces that hit it again), and prints per class the work a ray does (nodes, leaves, triangle
 // tests: counted by ray_counts.cpp) beside the time it takes (thread CPU time, best of
-// --repeat passes). The README's analysis of diffuse rays comes from it.
+// --repeat passes). bench/README.md's analysis of diffuse rays comes from it.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 

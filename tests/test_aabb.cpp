@@ -148,7 +148,7 @@ TEST_CASE("aabb: kdrt_aabb_of_triangles", "[aabb]") {
         common::Mesh mesh = kt::sphere(9, 13, 2.5);
         kdrt_triangles view = mesh.view();
         REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
-        kt::TreePtr tree = kt::build(mesh, 4);
+        kt::TreePtr tree = kt::build(mesh, 4, KDRT_BUILDER_MEDIAN);
         CHECK(same_box(box, kdrt_tree_bounds(tree.get())));
         double lo[3] = {1e30, 1e30, 1e30}, hi[3] = {-1e30, -1e30, -1e30};
         for (size_t i = 0; i < mesh.positions.size(); ++i)

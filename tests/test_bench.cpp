@@ -193,7 +193,7 @@ TEST_CASE("diffuse rays leave their primary hit through kdrt_spawn_ray, near and
     std::memcpy(moved.eye, far.rays[0].org, sizeof moved.eye);
     for (const kb::Scene *s : {&scene, static_cast<const kb::Scene *>(&moved)}) {
         INFO("eye z " << s->eye[2]);
-        kt::TreePtr tree = kt::build(s->geometry, 4);
+        kt::TreePtr tree = kt::build(s->geometry, 4, KDRT_BUILDER_MEDIAN);
         const std::vector<kdrt_ray> primary = kb::make_rays(*s, kb::RayKind::primary, 24, 24, tree.get(), 1);
         const std::vector<kdrt_ray> bounces = kb::make_rays(*s, kb::RayKind::diffuse, 24, 24, tree.get(), 1);
         REQUIRE(bounces.size() == primary.size());  // every primary ray hits the ball or the wall
@@ -229,7 +229,7 @@ TEST_CASE("accuracy sets: the frame, the frame moved far away with its camera", 
     REQUIRE(frame.size() == 2);
     CHECK(frame[0].set == "frame-primary");
     CHECK(frame[1].set == "frame-diffuse");
-    kt::TreePtr tree = kt::build(scene.geometry, 4);
+    kt::TreePtr tree = kt::build(scene.geometry, 4, KDRT_BUILDER_MEDIAN);
     const std::vector<kdrt_ray> primary = kb::make_rays(scene, kb::RayKind::primary, 20, 20, tree.get(), 1);
     const std::vector<kdrt_ray> diffuse = kb::make_rays(scene, kb::RayKind::diffuse, 20, 20, tree.get(), 1);
     for (const kb::AccuracySet &s : frame) {
@@ -251,7 +251,7 @@ TEST_CASE("accuracy sets: the frame, the frame moved far away with its camera", 
         REQUIRE(far.mesh.triangle_count() == scene.geometry.triangle_count());
         REQUIRE(far.rays.size() == primary.size());
         for (int a = 0; a < 3; ++a) CHECK(far.mesh.positions[size_t(a)] > 0.9 * offset);
-        kt::TreePtr moved = kt::build(far.mesh, 4);
+        kt::TreePtr moved = kt::build(far.mesh, 4, KDRT_BUILDER_MEDIAN);
         const std::vector<kdrt_hit> far_hits = kt::trace_all(moved.get(), far.rays);
         size_t same = 0;
         for (size_t i = 0; i < far_hits.size(); ++i) same += far_hits[i].triangle == near_hits[i].triangle;
@@ -444,7 +444,7 @@ TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "
     CHECK(0.5 * (lo[0] + hi[0]) == Approx(0.0).margin(1e-5));
 
     // Every primary ray hits something (mesh or wall), and the centre pixel hits the mesh.
-    kt::TreePtr tree = kt::build(scene.geometry, 4);
+    kt::TreePtr tree = kt::build(scene.geometry, 4, KDRT_BUILDER_MEDIAN);
     const std::vector<kdrt_ray> rays = kb::make_rays(scene, kb::RayKind::primary, 33, 33, tree.get(), 1);
     REQUIRE(rays.size() == 33u * 33u);
     size_t mesh_hits = 0;
@@ -480,7 +480,7 @@ TEST_CASE("the reference sample is seeded, distinct and sorted", "[bench]") {
 TEST_CASE("Mismatches counts answers that contradict the reference", "[bench]") {
     const common::Mesh ball = kt::sphere(16, 32, 1.0);
     const kb::Scene scene = kb::make_scene(ball, "BALL");
-    kt::TreePtr tree = kt::build(scene.geometry, 4);
+    kt::TreePtr tree = kt::build(scene.geometry, 4, KDRT_BUILDER_MEDIAN);
     const std::vector<kdrt_ray> rays = kb::make_rays(scene, kb::RayKind::primary, 40, 40, tree.get(), 1);
     std::vector<kdrt_hit> hits(rays.size());
     for (size_t i = 0; i < rays.size(); ++i) kdrt_intersect(tree.get(), &rays[i], &hits[i]);

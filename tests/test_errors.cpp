@@ -390,7 +390,7 @@ TEST_CASE("errors: KDRT_BUILD_SKIP_INVALID_TRIANGLES leaves bad triangles out an
                                   base.positions.begin() + size_t(t) * 9 + 9);
         }
     oracle::Oracle oracle(good);
-    kt::TreePtr reference = kt::build(good, 0);
+    kt::TreePtr reference = kt::build(good, 0, KDRT_BUILDER_MEDIAN);
 
     // Rays: random ones, and one aimed at each bad triangle's centroid (the original geometry).
     std::vector<kdrt_ray> rays = kt::random_rays(kdrt_tree_bounds(reference.get()), 20000, 77);
@@ -569,7 +569,7 @@ TEST_CASE("errors: kdrt_result_string names every code distinctly", "[errors]") 
 
 TEST_CASE("errors: queries with NULL arguments", "[errors]") {
     common::Mesh mesh = kt::sphere(6, 8, 1.0);
-    kt::TreePtr tree = kt::build(mesh, 2);
+    kt::TreePtr tree = kt::build(mesh, 2, KDRT_BUILDER_MEDIAN);
     kdrt_ray r = ray_of(0, 0, 0, 0.3f, 0.2f, 0.9f);
     kdrt_hit h;
     REQUIRE(kdrt_intersect(tree.get(), &r, &h) == 1);  // the baseline hits
@@ -621,7 +621,7 @@ TEST_CASE("errors: rays that can hit nothing miss", "[errors]") {
     bad.emplace_back("tmax negative", ray_of(0.1f, 0.05f, -0.02f, 0.3f, 0.5f, 0.8f, -5, -1));
 
     for (uint32_t leaf : kLeafSizes) {
-        kt::TreePtr tree = kt::build(mesh, leaf);
+        kt::TreePtr tree = kt::build(mesh, leaf, KDRT_BUILDER_MEDIAN);
         kdrt_hit h;
         REQUIRE(kdrt_intersect(tree.get(), &good, &h) == 1);
         REQUIRE(kdrt_occluded(tree.get(), &good) == 1);

@@ -550,7 +550,7 @@ TEST_CASE("hard: triangles in the split plane, rays in it and rays starting on t
             CHECK(wrong == 0);
         }
         // And random rays against the oracle, for every leaf size.
-        std::vector<kdrt_ray> rays = kt::random_rays(kdrt_tree_bounds(kt::build(scene.mesh, 0).get()), 20000, 5 + axis);
+        std::vector<kdrt_ray> rays = kt::random_rays(kdrt_tree_bounds(kt::build(scene.mesh, 0, KDRT_BUILDER_MEDIAN).get()), 20000, 5 + axis);
         check_against_brute_force(view, &scene.mesh, rays, scene.mesh.name + " random rays");
     }
 }
@@ -560,7 +560,7 @@ TEST_CASE("hard: many identical triangles: the build terminates, the lowest inde
         Soup s("identical_only");
         for (int i = 0; i < 500; ++i) s.add(0, 0, 0, 4, 0, 0, 0, 4, 1);
         for (uint32_t leaf : kLeafSizes) {
-            kt::TreePtr tree = kt::build(s.mesh, leaf);
+            kt::TreePtr tree = kt::build(s.mesh, leaf, KDRT_BUILDER_MEDIAN);
             check_stats(tree.get(), s.mesh, leaf, 0);
             kdrt_tree_stats st;
             kdrt_tree_get_stats(tree.get(), &st);
@@ -757,7 +757,7 @@ TEST_CASE("hard: degenerate triangles are never hit", "[hard]") {
     rays.insert(rays.end(), random.begin(), random.end());
 
     // Expected: the good triangles alone, tested one by one, renumbered.
-    kt::TreePtr good_only = kt::build(good, 0);
+    kt::TreePtr good_only = kt::build(good, 0, KDRT_BUILDER_MEDIAN);
     std::vector<kdrt_hit> expected = kt::trace_all(good_only.get(), rays);
     for (kdrt_hit &h : expected)
         if (h.triangle != KDRT_INVALID_ID) h.triangle += degenerate;
@@ -848,7 +848,7 @@ TEST_CASE("hard: indexed and soup views with packed, 16, 20 and 13 byte strides 
     layouts[3].view = soup.view();
 
     const size_t count = kt::reference_ray_count();
-    std::vector<kdrt_ray> rays = kt::random_rays(kdrt_tree_bounds(kt::build(mesh, 4).get()), count, 2024);
+    std::vector<kdrt_ray> rays = kt::random_rays(kdrt_tree_bounds(kt::build(mesh, 4, KDRT_BUILDER_MEDIAN).get()), count, 2024);
     for (uint32_t leaf : kLeafSizes) {
         // The brute force gets fewer rays: it tests every triangle for each.
         std::vector<kdrt_ray> some(rays.begin(), rays.begin() + (leaf == 0 ? std::min<size_t>(count, 10000) : count));

@@ -1,5 +1,5 @@
 // Shared by the tests: generated meshes, the shared mesh folder, random rays, and the checks
-// against the brute-force double-precision reference (bench/reference.hpp, which kdrt-bench
+// against the brute-force double-precision reference (bench/oracle/reference.hpp, which kdrt-bench
 // uses for its Mismatches column too).
 #pragma once
 
@@ -43,7 +43,7 @@ std::vector<kdrt_hit> trace_all(const kdrt_tree *tree, const std::vector<kdrt_ra
 // kdrt_occluded() for every ray, on all cores (1: occluded).
 std::vector<unsigned char> occluded_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays);
 
-// Builds with the given leaf size (other options default); REQUIREs success.
+// Owns a built tree: kdrt_tree_free() when it goes.
 struct TreePtr {
     kdrt_tree *tree = nullptr;
     TreePtr() = default;
@@ -55,7 +55,15 @@ struct TreePtr {
     ~TreePtr() { kdrt_tree_free(tree); }
     kdrt_tree *get() const { return tree; }
 };
-TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_MEDIAN);
+
+// A tree of `mesh` built with kdrt_default_build_options() but for the leaf size and builder; the
+// builder defaults to the library's (KDRT_BUILDER_DEFAULT). REQUIREs success.
+TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_DEFAULT);
+
+// Reports that the running test cannot run here (no mesh folder, say) and why; the test returns
+// right after. It prints "kdrt test skipped: WHY", which tests/CMakeLists.txt makes ctest show as
+// skipped, not passed (SKIP_REGULAR_EXPRESSION).
+void skip_test(const std::string &why);
 
 // How many rays the reference suites trace: 100,000, or what KDRT_TEST_RAYS says.
 size_t reference_ray_count();
@@ -70,10 +78,16 @@ constexpr uint32_t kSahLeafSizes[] = {1, 4, 16};
 //  (a) kdrt_intersect() agrees with the oracle on every ray, and few rays are ambiguous;
 //  (b) it returns bit for bit what leaf size 0 returns (the header's tie-breaking promise);
 //  (c) kdrt_occluded() reports a hit exactly when kdrt_intersect() finds one.
-// Leaf size 0 (every triangle for every ray) runs kdrt_occluded() on only the first
-// brute_force_occluded_rays rays for (c); kdrt_intersect() always takes every ray.
+// Leaf size 0 (every triangle for every ray) traces only the first brute_force_rays() rays, so
+// (b) and (c) hold on those at leaf size 0; every other tree answers every ray for (a) to (c).
 // Fails with CHECKs naming the leaf size and the first bad ray; WARNs a line of counts per leaf
 // size so the log shows exact / ambiguous / wrong for every scene.
-void check_scene(const common::Mesh &mesh, size_t ray_count, uint32_t seed, size_t brute_force_occluded_rays = SIZE_MAX);
+void check_scene(const common::Mesh &mesh, size_t ray_count, uint32_t seed);
+
+// How many of ray_count rays leaf size 0 traces on a mesh of `triangles`: all of them while that
+// takes at most kBruteForceTests triangle tests (scaled by ray_count / 100,000, so that
+// KDRT_TEST_RAYS shortens it as it shortens the rest), else as many as fit, at least 2,000.
+constexpr double kBruteForceTests = 1e8;
+size_t brute_force_rays(size_t ray_count, uint32_t triangles);
 
 }  // namespace kt

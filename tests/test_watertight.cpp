@@ -1,5 +1,5 @@
 // The accuracy promises of kdrt.h (QUERIES AND NUMERICAL GUARANTEES) on the ray sets of
-// bench/hard_cases.hpp, which kdrt-bench --accuracy runs too:
+// bench/oracle/hard_cases.hpp, which kdrt-bench --accuracy runs too:
 //  - watertightness: no ray aimed at a vertex or an edge of a closed mesh slips through it, for
 //    every builder and several leaf sizes, with the default (watertight) intersector; and
 //    KDRT_INTERSECTOR_FAST (Moeller-Trumbore) does leak on the same rays, so the test can fail;

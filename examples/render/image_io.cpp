@@ -1,5 +1,5 @@
 // Image files: OpenEXR (linear, half or float) and PNG (sRGB, clamped), written atomically
-// (bench/atomic_file.hpp): a temporary file beside the output, renamed over it once complete.
+// (common/atomic_file.hpp): a temporary file beside the output, renamed over it once complete.
 #include "render.hpp"
 
 #include "common/atomic_file.hpp"  // common::write_atomically, common::write_file_atomically
