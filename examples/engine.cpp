@@ -32,7 +32,7 @@ public:
     void parallel_for(uint32_t count, const std::function<void(uint32_t)> &body) {
         std::atomic<uint32_t> left(count);
         std::unique_lock<std::mutex> lock(mutex_);
-        for (uint32_t i = 0; i < count; ++i) jobs_.push_back([&body, &left, i] { body(i), --left; });
+        for (uint32_t i = 0; i < count; ++i) jobs_.push_back([&body, &left, i] { body(i); --left; });
         lock.unlock();
         wake_.notify_all();
         while (left > 0) if (!run_one(false)) std::this_thread::yield(); // help rather than sleep
@@ -57,7 +57,7 @@ private:
     }
     std::vector<std::thread> threads_;
     std::deque<std::function<void()>> jobs_;
-    std::mutex mutex_;
+    std::mutex mutex_; // guards jobs_ and stop_
     std::condition_variable wake_;
     bool stop_ = false;
 };
