@@ -8,30 +8,25 @@
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
-#include "common/mesh_io.hpp" // common::Mesh, common::load_mesh (Assimp, guarded against malformed files), common::torus
-#include "common/thread_scheduler.hpp" // common::ThreadScheduler: the SAH build's tasks on every core
-#include "common/vec3.hpp"             // common::Vec3
 #include "common/atomic_file.hpp"      // common::write_file_atomically
+#include "common/mesh_io.hpp"          // common::load_mesh (Assimp, guarded against malformed files), common::torus
 #include "common/parse.hpp"            // common::parse_count, common::parse_size
+#include "common/thread_scheduler.hpp" // common::ThreadScheduler: the SAH build's tasks on every core
+#include "common/timing.hpp"           // common::Stopwatch, common::timed_parallel
+#include "common/vec3.hpp"             // common::Vec3
 #include <stb_image_write.h>
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cerrno>
 #include <cmath>
-#include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <new>
 #include <string>
-#include <system_error>
-#include <thread>
 #include <vector>
 
-#include <sys/stat.h>
 #include <unistd.h>
 
 #ifndef KDRT_MESH_DIR
@@ -56,14 +51,7 @@ const char *const kUsage =
     "\n"
     "Tree statistics and build and trace times go to stderr.\n";
 
-using common::Mesh;
-
 using common::Vec3;
-
-double seconds_since(std::chrono::steady_clock::time_point start)
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 bool file_exists(const std::string &path) { return !path.empty() && access(path.c_str(), R_OK) == 0; }
 
@@ -132,7 +120,7 @@ static int run(int argc, char **argv)
                     " is more than 64 Mpixels");
 
     // The mesh.
-    Mesh mesh;
+    common::Mesh mesh;
     if (mesh_path.empty()) {
         const std::string bunny = std::string(KDRT_MESH_DIR) + "/common/stanford-bunny.obj";
         if (file_exists(bunny)) {
@@ -149,12 +137,7 @@ static int run(int argc, char **argv)
         std::fprintf(stderr, "mesh: %s\n", mesh_path.c_str());
     }
 
-    kdrt_triangles view = {};
-    view.positions = mesh.positions.data();
-    view.position_stride = 0;
-    view.vertex_count = uint32_t(mesh.positions.size() / 3);
-    view.indices = mesh.indices.data();
-    view.triangle_count = uint32_t(mesh.indices.size() / 3);
+    const kdrt_triangles view = mesh.view(); // borrows the mesh's arrays, which outlive the tree
 
     // The tree: the default (SAH) builder, its subtrees built on every core.
     common::ThreadScheduler build_threads;
@@ -163,27 +146,22 @@ static int run(int argc, char **argv)
     options.scheduler = build_threads.hooks();
     kdrt_tree *tree = nullptr;
     kdrt_build_report report;
-    const auto build_start = std::chrono::steady_clock::now();
+    const common::Stopwatch build_clock;
     const kdrt_result built = kdrt_tree_build(&view, &options, &tree, &report);
-    const double build_seconds = seconds_since(build_start);
+    const double build_seconds = build_clock.ms() / 1000;
     if (built != KDRT_SUCCESS) {
         std::string message = "cannot build the tree: " + std::string(kdrt_result_string(built));
-        if (report.invalid_triangle != KDRT_INVALID_ID) {
-            const uint32_t t = report.invalid_triangle;
-            message += "\n  first bad triangle: " + std::to_string(t);
-            if (t < view.triangle_count) {
-                for (int k = 0; k < 3; ++k) {
-                    const uint32_t v = mesh.indices[size_t(t) * 3 + size_t(k)];
-                    char line[160];
-                    if (v < view.vertex_count)
-                        std::snprintf(line, sizeof line, "\n  vertex %u: (%g, %g, %g)", v,
-                                      double(mesh.positions[size_t(v) * 3]), double(mesh.positions[size_t(v) * 3 + 1]),
-                                      double(mesh.positions[size_t(v) * 3 + 2]));
-                    else
-                        std::snprintf(line, sizeof line, "\n  vertex %u: out of range", v);
-                    message += line;
-                }
-            }
+        const uint32_t t = report.invalid_triangle; // the corners of the first bad triangle
+        if (t != KDRT_INVALID_ID) message += "\n  first bad triangle: " + std::to_string(t);
+        for (int k = 0; k < 3 && t < view.triangle_count; ++k) {
+            const uint32_t v = mesh.indices[size_t(t) * 3 + size_t(k)];
+            char line[160];
+            if (v < view.vertex_count)
+                std::snprintf(line, sizeof line, "\n  vertex %u: (%g, %g, %g)", v, double(mesh.positions[size_t(v) * 3]),
+                              double(mesh.positions[size_t(v) * 3 + 1]), double(mesh.positions[size_t(v) * 3 + 2]));
+            else
+                std::snprintf(line, sizeof line, "\n  vertex %u: out of range", v);
+            message += line;
         }
         return fail(message);
     }
@@ -217,57 +195,36 @@ static int run(int argc, char **argv)
     const Vec3 right = normalize(cross(forward, Vec3{0, 1, 0}));
     const Vec3 up = cross(right, forward);
 
-    // Trace: rows are handed out to the threads one at a time; the tree is const and shared.
+    // Trace: each thread a band of rows; the tree is const and shared.
     std::vector<unsigned char> rgb(size_t(width) * size_t(height) * 3);
-    std::atomic<int> next_row(0);
     std::atomic<uint64_t> hits(0);
-    auto trace_rows = [&]() {
-        uint64_t my_hits = 0;
-        for (int y; (y = next_row.fetch_add(1)) < height;) {
-            for (int x = 0; x < width; ++x) {
-                // Row 0 is the top of the image.
-                const double sx = (2.0 * (x + 0.5) / width - 1.0) * tan_half * aspect;
-                const double sy = (1.0 - 2.0 * (y + 0.5) / height) * tan_half;
-                const Vec3 d = normalize(forward + sx * right + sy * up);
-                kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f,
-                                {float(d.x), float(d.y), float(d.z)}, INFINITY};
-                kdrt_hit hit;
-                double r = 0.30, g = 0.30, b = 0.32; // background
-                if (kdrt_intersect(tree, &ray, &hit)) {
-                    ++my_hits;
-                    Vec3 p[3];
-                    for (int k = 0; k < 3; ++k) {
-                        const float *v = &mesh.positions[size_t(mesh.indices[size_t(hit.triangle) * 3 + size_t(k)]) * 3];
-                        p[k] = Vec3{v[0], v[1], v[2]};
-                    }
-                    // Headlight: the light sits at the eye, so the Lambert term is |cos| between
-                    // the ray and the geometric normal (either side of the triangle is lit).
-                    const Vec3 n = normalize(cross(p[1] - p[0], p[2] - p[0]));
-                    const double lambert = std::fabs(dot(n, d));
-                    const double shade = 0.08 + 0.92 * lambert;
-                    r = 0.95 * shade, g = 0.88 * shade, b = 0.78 * shade;
-                }
-                unsigned char *px = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
-                px[0] = (unsigned char)std::lround(255.0 * std::min(1.0, r));
-                px[1] = (unsigned char)std::lround(255.0 * std::min(1.0, g));
-                px[2] = (unsigned char)std::lround(255.0 * std::min(1.0, b));
+    const unsigned thread_count = common::all_cores();
+    const double trace_seconds = common::timed_parallel(size_t(height), thread_count, [&](size_t y) {
+        uint64_t row_hits = 0;
+        for (int x = 0; x < width; ++x) {
+            // Row 0 is the top of the image.
+            const double sx = (2.0 * (x + 0.5) / width - 1.0) * tan_half * aspect;
+            const double sy = (1.0 - 2.0 * (double(y) + 0.5) / height) * tan_half;
+            const Vec3 d = normalize(forward + sx * right + sy * up);
+            kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f,
+                            {float(d.x), float(d.y), float(d.z)}, INFINITY};
+            kdrt_hit hit;
+            float n[3];
+            double r = 0.30, g = 0.30, b = 0.32; // background
+            if (kdrt_intersect(tree, &ray, &hit) && kdrt_hit_surface(tree, &hit, nullptr, n)) {
+                ++row_hits;
+                // Headlight: the light sits at the eye, so the Lambert term is |cos| between the
+                // ray and the unit geometric normal (either side of the triangle is lit).
+                const double shade = 0.08 + 0.92 * std::fabs(dot(Vec3{n[0], n[1], n[2]}, d));
+                r = 0.95 * shade, g = 0.88 * shade, b = 0.78 * shade;
             }
+            unsigned char *px = &rgb[(y * size_t(width) + size_t(x)) * 3];
+            px[0] = (unsigned char)std::lround(255.0 * std::min(1.0, r));
+            px[1] = (unsigned char)std::lround(255.0 * std::min(1.0, g));
+            px[2] = (unsigned char)std::lround(255.0 * std::min(1.0, b));
         }
-        hits += my_hits;
-    };
-    const unsigned thread_count = std::max(1u, std::thread::hardware_concurrency());
-    const auto trace_start = std::chrono::steady_clock::now();
-    std::vector<std::thread> threads;
-    for (unsigned i = 1; i < thread_count; ++i) {
-        try {
-            threads.emplace_back(trace_rows);
-        } catch (const std::system_error &) {
-            break; // trace with the threads we have
-        }
-    }
-    trace_rows();
-    for (std::thread &t : threads) t.join();
-    const double trace_seconds = seconds_since(trace_start);
+        hits += row_hits;
+    }) / 1000;
     const double rays = double(width) * height;
     std::fprintf(stderr, "trace: %.3f s for %dx%d primary rays on %u threads (%.2f Mrays/s, %.1f%% hit)\n",
                  trace_seconds, width, height, thread_count, rays / std::max(trace_seconds, 1e-9) / 1e6,
