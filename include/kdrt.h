@@ -556,8 +556,9 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 extern "C" {
 #endif
 
-/* 8-byte node (pbrt-v3's layout). bits: low 2 = axis 0..2, or 3 for a leaf; high 30 = index of
-   the above child (the below child follows its parent), or a leaf's triangle count. */
+/* 8-byte node (pbrt-v3's layout). bits: low 2 = axis 0..2, or KDRT__LEAF; high 30 = index of
+   the above child (the below child follows its parent), or a leaf's triangle count. Only the
+   kdrt__node_* helpers below read or write bits. */
 typedef struct kdrt__node {
     union {
         float split;        /* inner node: plane position on its axis */
@@ -568,7 +569,30 @@ typedef struct kdrt__node {
 
 typedef char kdrt__node_is_8_bytes[sizeof(kdrt__node) == 8 ? 1 : -1];
 
-#define KDRT__LEAF 3u
+#define KDRT__LEAF 3u /* kdrt__node_axis() of a leaf */
+
+/* A leaf of count references from first_ref on (count < 2^30: KDRT_MAX_TRIANGLES). */
+static inline kdrt__node kdrt__node_leaf(uint32_t first_ref, uint32_t count)
+{
+    kdrt__node n;
+    n.u.first_ref = first_ref;
+    n.bits = (count << 2) | KDRT__LEAF;
+    return n;
+}
+
+/* An inner node split at split on axis (0..2); its above child is node above (< 2^30). */
+static inline kdrt__node kdrt__node_inner(uint32_t axis, float split, uint32_t above)
+{
+    kdrt__node n;
+    n.u.split = split;
+    n.bits = (above << 2) | axis;
+    return n;
+}
+
+static inline uint32_t kdrt__node_axis(const kdrt__node *n) { return n->bits & 3u; } /* or KDRT__LEAF */
+static inline int kdrt__node_is_leaf(const kdrt__node *n) { return kdrt__node_axis(n) == KDRT__LEAF; }
+static inline uint32_t kdrt__node_above(const kdrt__node *n) { return n->bits >> 2; } /* inner node */
+static inline uint32_t kdrt__node_count(const kdrt__node *n) { return n->bits >> 2; } /* leaf */
 
 /* A triangle as the intersection tests read it (see kdrt__pack_triangles). */
 typedef struct kdrt__triangle {
@@ -939,8 +963,7 @@ static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32
                       sizeof(uint32_t));
     if (r != KDRT_SUCCESS) return r;
     if (n) memcpy(b->refs + b->ref_count, tris, (size_t)n * sizeof(uint32_t));
-    b->nodes[node].u.first_ref = b->ref_count;
-    b->nodes[node].bits = (n << 2) | KDRT__LEAF;
+    b->nodes[node] = kdrt__node_leaf(b->ref_count, n);
     b->ref_count += n;
     b->leaves += 1;
     if (depth > b->depth_reached) b->depth_reached = depth;
@@ -1007,8 +1030,7 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     r = kdrt__build_node(b, children, nb, depth + 1);
     if (r == KDRT_SUCCESS) {
         /* The below child follows at node + 1; the above child starts here. */
-        b->nodes[node].u.split = split;
-        b->nodes[node].bits = (b->node_count << 2) | (uint32_t)axis;
+        b->nodes[node] = kdrt__node_inner((uint32_t)axis, split, b->node_count);
         r = kdrt__build_node(b, children + 3u * (size_t)nb, na, depth + 1);
     }
     kdrt__free(b->allocator, children);
@@ -1585,8 +1607,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
         r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL, child_lo[0],
                            child_hi[0], depth + 1);
     if (r == KDRT_SUCCESS) {
-        b->nodes[node].u.split = plane.pos;
-        b->nodes[node].bits = (b->node_count << 2) | (uint32_t)plane.axis;
+        b->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, b->node_count);
         r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL, child_lo[1],
                            child_hi[1], depth + 1);
     }
@@ -1655,8 +1676,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         t->out.leaves = t->out.depth_reached = 0;
         t->refs = refs, t->n = n, t->depth = depth, t->result = KDRT_SUCCESS;
         memcpy(t->lo, lo, sizeof t->lo), memcpy(t->hi, hi, sizeof t->hi);
-        top->nodes[node].u.first_ref = top->task_count++;
-        top->nodes[node].bits = KDRT__LEAF;
+        top->nodes[node] = kdrt__node_leaf(top->task_count++, 0); /* first_ref: the task */
         return KDRT_SUCCESS;
     }
     kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
@@ -1667,8 +1687,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         return r;
     }
     r = kdrt__sah_top(b, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1);
-    top->nodes[node].u.split = plane.pos;
-    top->nodes[node].bits = (top->node_count << 2) | (uint32_t)plane.axis;
+    top->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, top->node_count);
     if (r == KDRT_SUCCESS) return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
     kdrt__free(b->allocator, child[1]);
     return r;
@@ -1680,13 +1699,13 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
 {
     const kdrt__node *n = &top->nodes[i];
     uint32_t node = b->node_count, k;
-    if ((n->bits & 3u) == KDRT__LEAF) {
+    if (kdrt__node_is_leaf(n)) {
         const kdrt__builder *t = &top->tasks[n->u.first_ref].out;
         for (k = 0; k < t->node_count; ++k) {
-            kdrt__node copy = t->nodes[k];
-            if ((copy.bits & 3u) == KDRT__LEAF) copy.u.first_ref += b->ref_count;
-            else copy.bits += node << 2;
-            b->nodes[node + k] = copy;
+            const kdrt__node *c = &t->nodes[k];
+            b->nodes[node + k] = kdrt__node_is_leaf(c)
+                                     ? kdrt__node_leaf(c->u.first_ref + b->ref_count, kdrt__node_count(c))
+                                     : kdrt__node_inner(kdrt__node_axis(c), c->u.split, kdrt__node_above(c) + node);
         }
         if (t->ref_count) memcpy(b->refs + b->ref_count, t->refs, (size_t)t->ref_count * sizeof(uint32_t));
         b->node_count += t->node_count, b->ref_count += t->ref_count;
@@ -1696,9 +1715,8 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
     }
     b->node_count += 1;
     kdrt__join(b, top, i + 1);
-    b->nodes[node].u.split = n->u.split;
-    b->nodes[node].bits = (b->node_count << 2) | (n->bits & 3u);
-    kdrt__join(b, top, n->bits >> 2);
+    b->nodes[node] = kdrt__node_inner(kdrt__node_axis(n), n->u.split, b->node_count);
+    kdrt__join(b, top, kdrt__node_above(n));
 }
 
 /* The SAH build: the top, the tasks (on the caller's scheduler, or one after the other), then
@@ -1794,13 +1812,13 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
     memset(slot, 0xFF, (size_t)m->triangle_count * sizeof(uint32_t));
     for (;;) {
         const kdrt__node *n = &nodes[node];
-        if ((n->bits & 3u) != KDRT__LEAF) {
+        if (!kdrt__node_is_leaf(n)) {
             KDRT_ASSERT(sp < KDRT_MAX_DEPTH); /* the build bounds the depth */
-            stack[sp++] = n->bits >> 2;
+            stack[sp++] = kdrt__node_above(n);
             node += 1;
             continue;
         }
-        for (i = 0; i < n->bits >> 2; ++i) {
+        for (i = 0; i < kdrt__node_count(n); ++i) {
             uint32_t tri = refs[n->u.first_ref + i];
             if (slot[tri] == KDRT_INVALID_ID) slot[tri] = count++;
         }
@@ -1889,9 +1907,9 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
     for (;;) {
         const kdrt__node *node = &tree->nodes[at.node];
         double share = kdrt__box_area(at.lo, at.hi) / root_area;
-        int axis = (int)(node->bits & 3u);
-        if (axis == (int)KDRT__LEAF) {
-            cost += share * intersection_cost * (double)(node->bits >> 2);
+        int axis = (int)kdrt__node_axis(node);
+        if (kdrt__node_is_leaf(node)) {
+            cost += share * intersection_cost * (double)kdrt__node_count(node);
             if (sp == 0) return cost;
             at = stack[--sp];
             continue;
@@ -1899,7 +1917,7 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
         cost += share * traversal_cost;
         KDRT_ASSERT(sp < KDRT_MAX_DEPTH && at.lo[axis] <= node->u.split && node->u.split <= at.hi[axis]);
         stack[sp] = at; /* the above child, for later */
-        stack[sp].node = node->bits >> 2;
+        stack[sp].node = kdrt__node_above(node);
         stack[sp++].lo[axis] = node->u.split;
         at.node += 1; /* the below child follows its parent */
         at.hi[axis] = node->u.split;
@@ -2101,12 +2119,12 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
        or past the above child, else in the below child's. */
     while (at != index) {
         n = &tree->nodes[at];
-        info.axis = (int)(n->bits & 3u);
-        KDRT_ASSERT((uint32_t)info.axis != KDRT__LEAF && index > at);
-        if ((uint32_t)info.axis == KDRT__LEAF) return KDRT_ERROR_INDEX_OUT_OF_RANGE; /* not reached */
-        if (index >= n->bits >> 2) {
+        KDRT_ASSERT(!kdrt__node_is_leaf(n) && index > at);
+        if (kdrt__node_is_leaf(n)) return KDRT_ERROR_INDEX_OUT_OF_RANGE; /* not reached */
+        info.axis = (int)kdrt__node_axis(n);
+        if (index >= kdrt__node_above(n)) {
             info.bounds.min[info.axis] = n->u.split;
-            at = n->bits >> 2;
+            at = kdrt__node_above(n);
         } else {
             info.bounds.max[info.axis] = n->u.split;
             at += 1;
@@ -2114,17 +2132,17 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
         info.depth += 1;
     }
     n = &tree->nodes[index];
-    if ((n->bits & 3u) == KDRT__LEAF) {
+    if (kdrt__node_is_leaf(n)) {
         info.is_leaf = 1;
         info.axis = -1;
         info.below = info.above = KDRT_INVALID_ID;
-        info.triangle_count = n->bits >> 2;
+        info.triangle_count = kdrt__node_count(n);
         info.first_reference = n->u.first_ref;
     } else {
-        info.axis = (int)(n->bits & 3u);
+        info.axis = (int)kdrt__node_axis(n);
         info.split = n->u.split;
         info.below = index + 1u;
-        info.above = n->bits >> 2;
+        info.above = kdrt__node_above(n);
     }
     *out_info = info;
     return KDRT_SUCCESS;
@@ -2250,14 +2268,14 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
-        uint32_t axis = n->bits & 3u;
-        if (axis != KDRT__LEAF) {
+        if (!kdrt__node_is_leaf(n)) {
+            uint32_t axis = kdrt__node_axis(n);
             float split = n->u.split, o = s.org[axis];
             KDRT__COUNT(stats, inner_nodes, 1);
             float t_split = (split - o) * s.inv_dir[axis];
             int below_first = o < split || (o == split && s.dir[axis] <= 0.0f);
-            uint32_t near_child = below_first ? node + 1 : n->bits >> 2;
-            uint32_t far_child = below_first ? n->bits >> 2 : node + 1;
+            uint32_t near_child = below_first ? node + 1 : kdrt__node_above(n);
+            uint32_t far_child = below_first ? kdrt__node_above(n) : node + 1;
             if (t_split != t_split) {
                 /* 0 * infinity: the ray lies in the plane and may hit either side's triangles. */
                 KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
@@ -2285,7 +2303,7 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
         }
         {
             const uint32_t *refs = tree->refs + n->u.first_ref;
-            uint32_t i, count = n->bits >> 2;
+            uint32_t i, count = kdrt__node_count(n);
             KDRT__COUNT(stats, leaves, 1);
             KDRT__COUNT(stats, empty_leaves, count == 0);
             for (i = 0; i < count; ++i) {
