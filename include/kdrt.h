@@ -632,6 +632,20 @@ static float kdrt__next_up(float x)
 }
 static float kdrt__next_down(float x) { return -kdrt__next_up(-x); }
 
+/* c = a x b, in the precision of the inputs; c must not be a or b. */
+static void kdrt__cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+static void kdrt__cross_float(const float a[3], const float b[3], float c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
 static void *kdrt__alloc(const kdrt_allocator *a, size_t size)
 {
     if (size == 0) size = 1;
@@ -723,11 +737,11 @@ static kdrt_result kdrt__check_triangle(const kdrt_triangles *m, uint32_t tri, f
    float, so exact degeneracies (repeated corners, collinear grid points) come out exactly zero. */
 static int kdrt__zero_area(float p[3][3])
 {
-    double e1[3], e2[3];
+    double e1[3], e2[3], n[3];
     int a;
     for (a = 0; a < 3; ++a) e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
-    return e1[1] * e2[2] - e1[2] * e2[1] == 0.0 && e1[2] * e2[0] - e1[0] * e2[2] == 0.0 &&
-           e1[0] * e2[1] - e1[1] * e2[0] == 0.0;
+    kdrt__cross(e1, e2, n);
+    return n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0;
 }
 
 /* ---- results, boxes ---- */
@@ -2194,7 +2208,9 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
     }
     /* In double the products of floats are exact, so each edge function is rounded once, and
        its sign is right: the two triangles of an edge get exactly opposite values, even where
-       the compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM). */
+       the compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM).
+       Written out rather than with kdrt__cross: each is a single 2D determinant of floats
+       widened to double and rounded back to float on the spot. */
     e0 = (float)((double)x[2] * y[1] - (double)y[2] * x[1]); /* edge 1-2: weight of corner 0 */
     e1 = (float)((double)x[0] * y[2] - (double)y[0] * x[2]); /* edge 2-0: weight of corner 1 */
     e2 = (float)((double)x[1] * y[0] - (double)y[1] * x[0]); /* edge 0-1: weight of corner 2 */
@@ -2216,17 +2232,13 @@ static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri
     int a;
     for (a = 0; a < 3; ++a) p[a] = vertices + 3 * (size_t)tri->v[a];
     for (a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
-    pv[0] = s->dir[1] * e2[2] - s->dir[2] * e2[1];
-    pv[1] = s->dir[2] * e2[0] - s->dir[0] * e2[2];
-    pv[2] = s->dir[0] * e2[1] - s->dir[1] * e2[0];
+    kdrt__cross_float(s->dir, e2, pv);
     det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
     if (det == 0.0f) return 0; /* parallel to the plane */
     inv_det = 1.0f / det;
     u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv_det;
     if (!(u >= 0.0f && u <= 1.0f)) return 0;
-    qv[0] = tv[1] * e1[2] - tv[2] * e1[1];
-    qv[1] = tv[2] * e1[0] - tv[0] * e1[2];
-    qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    kdrt__cross_float(tv, e1, qv);
     v = (s->dir[0] * qv[0] + s->dir[1] * qv[1] + s->dir[2] * qv[2]) * inv_det;
     if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
@@ -2376,9 +2388,7 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
         /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp */
         if (point) point[a] = (float)(p[0][a] + hit->u * e1[a] + hit->v * e2[a]);
     }
-    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    kdrt__cross(e1, e2, n);
     length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (normal)
         for (a = 0; a < 3; ++a) normal[a] = length > 0.0 ? (float)(n[a] / length) : 0.0f;
@@ -2449,13 +2459,6 @@ static int kdrt__load_direction(const float v[3], double d[3])
 }
 
 static double kdrt__dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-static void kdrt__cross(const double a[3], const double b[3], double c[3])
-{
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-}
 
 /* cos^2 of the transmitted angle, 1 - eta^2 (1 - cos_i^2), for the Fresnel functions' float
    cosine; negative on total internal reflection. A float eta and a float cosine square exactly
