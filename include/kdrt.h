@@ -1938,78 +1938,88 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
     }
 }
 
-KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
-                                     kdrt_tree **out_tree, kdrt_build_report *report)
+/* Options: KDRT_ERROR_INVALID_OPTION for an unknown builder, intersector or flag or a cost out
+   of range, KDRT_ERROR_NULL_ARGUMENT for an allocator with one hook of the two. */
+static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
 {
-    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
-    kdrt_triangles m;
-    kdrt_tree *tree = NULL;
-    kdrt__builder b;
-    float *scratch = NULL, p[3][3];
-    uint32_t *valid = NULL, *lists = NULL, n = 0, tri, skipped = 0, degenerate = 0, i, records, vertices;
-    kdrt__key *keys = NULL;
-    kdrt_result r;
-    size_t bytes;
-    int a, k;
-
-    if (report) {
-        memset(report, 0, sizeof *report);
-        report->invalid_triangle = KDRT_INVALID_ID;
-    }
-    if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
-    *out_tree = NULL;
-    r = kdrt__check_view(mesh, &m);
-    if (r != KDRT_SUCCESS) return r;
-    if (opt.builder != KDRT_BUILDER_DEFAULT && opt.builder != KDRT_BUILDER_MEDIAN && opt.builder != KDRT_BUILDER_SAH)
+    if (opt->builder != KDRT_BUILDER_DEFAULT && opt->builder != KDRT_BUILDER_MEDIAN &&
+        opt->builder != KDRT_BUILDER_SAH)
         return KDRT_ERROR_INVALID_OPTION;
     /* Negated comparisons also turn NaN away. */
-    if (!(opt.sah_traversal_cost >= 0.0f) || !(opt.sah_intersection_cost >= 0.0f) ||
-        !(opt.sah_empty_bonus >= 0.0f && opt.sah_empty_bonus < 1.0f) ||
-        !kdrt__finite(opt.sah_traversal_cost) || !kdrt__finite(opt.sah_intersection_cost))
+    if (!(opt->sah_traversal_cost >= 0.0f) || !(opt->sah_intersection_cost >= 0.0f) ||
+        !(opt->sah_empty_bonus >= 0.0f && opt->sah_empty_bonus < 1.0f) ||
+        !kdrt__finite(opt->sah_traversal_cost) || !kdrt__finite(opt->sah_intersection_cost))
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt.intersector != KDRT_INTERSECTOR_DEFAULT && opt.intersector != KDRT_INTERSECTOR_WATERTIGHT &&
-        opt.intersector != KDRT_INTERSECTOR_FAST)
+    if (opt->intersector != KDRT_INTERSECTOR_DEFAULT && opt->intersector != KDRT_INTERSECTOR_WATERTIGHT &&
+        opt->intersector != KDRT_INTERSECTOR_FAST)
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt.flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
-    if ((opt.allocator.alloc == NULL) != (opt.allocator.free == NULL)) return KDRT_ERROR_NULL_ARGUMENT;
+    if (opt->flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
+    if ((opt->allocator.alloc == NULL) != (opt->allocator.free == NULL)) return KDRT_ERROR_NULL_ARGUMENT;
+    return KDRT_SUCCESS;
+}
 
-    memset(&b, 0, sizeof b);
-    b.allocator = &opt.allocator;
-    b.max_leaf_size = opt.max_leaf_size;
-    b.mesh = &m;
-    b.sah_trav = opt.sah_traversal_cost > 0.0f ? opt.sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
-    b.sah_isect = opt.sah_intersection_cost > 0.0f ? opt.sah_intersection_cost : KDRT_DEFAULT_SAH_INTERSECTION_COST;
-    b.sah_empty_bonus = opt.sah_empty_bonus > 0.0f ? opt.sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
-    b.max_depth = opt.max_depth ? opt.max_depth : kdrt__default_depth(m.triangle_count);
-    if (b.max_depth > KDRT_MAX_DEPTH) b.max_depth = KDRT_MAX_DEPTH;
+/* The builder's settings from checked options, a zero option replaced by its default; the
+   builder keeps pointers to opt and m, and its arrays start empty. */
+static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt, const kdrt_triangles *m)
+{
+    memset(b, 0, sizeof *b);
+    b->allocator = &opt->allocator;
+    b->max_leaf_size = opt->max_leaf_size;
+    b->mesh = m;
+    b->sah_trav = opt->sah_traversal_cost > 0.0f ? opt->sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
+    b->sah_isect = opt->sah_intersection_cost > 0.0f ? opt->sah_intersection_cost
+                                                      : KDRT_DEFAULT_SAH_INTERSECTION_COST;
+    b->sah_empty_bonus = opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
+    b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangle_count);
+    if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
+}
 
-    tree = (kdrt_tree *)kdrt__alloc(&opt.allocator, sizeof *tree);
-    if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
+/* An empty tree over m, with no nodes yet; NULL when out of memory. */
+static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_triangles *m)
+{
+    kdrt_tree *tree = (kdrt_tree *)kdrt__alloc(&opt->allocator, sizeof *tree);
+    if (!tree) return NULL;
     memset(tree, 0, sizeof *tree);
-    tree->mesh = m;
-    tree->watertight = opt.intersector != KDRT_INTERSECTOR_FAST;
-    tree->allocator = opt.allocator;
+    tree->mesh = *m;
+    tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
+    tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
+    return tree;
+}
 
-    /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles. */
-    if (!kdrt__mul_size((size_t)m.triangle_count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes)) {
-        r = KDRT_ERROR_SIZE_OVERFLOW;
-        goto fail;
-    }
-    scratch = (float *)kdrt__alloc(&opt.allocator, bytes);
-    if (!scratch) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
-    valid = (uint32_t *)(scratch + 9 * (size_t)m.triangle_count);
-    b.lo = scratch;
-    b.hi = scratch + 3 * (size_t)m.triangle_count;
-    b.centroid = scratch + 6 * (size_t)m.triangle_count;
-    b.side = (unsigned char *)(valid + m.triangle_count);
+/* Triangle preparation. Every triangle is checked: an invalid one fails the build, or under
+   KDRT_BUILD_SKIP_INVALID_TRIANGLES is skipped, and a zero-area one is left out. The others get
+   their box and centroid in b (by the caller's index), grow *bounds and are listed, in order, in
+   (*valid)[0 .. *n). All of it is one allocation, *scratch, for the caller to free. */
+static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangles *m, uint32_t flags,
+                                           kdrt_aabb *bounds, float **scratch, uint32_t **valid,
+                                           uint32_t *n, kdrt_build_report *report)
+{
+    const size_t count = m->triangle_count;
+    uint32_t tri, skipped = 0, degenerate = 0;
+    float p[3][3];
+    size_t bytes;
+    kdrt_result r;
+    int a, k;
 
-    for (tri = 0; tri < m.triangle_count; ++tri) {
-        float *lo = scratch + 3 * (size_t)tri, *hi = lo + 3 * (size_t)m.triangle_count, *c = hi + 3 * (size_t)m.triangle_count;
-        r = kdrt__check_triangle(&m, tri, p);
+    *n = 0;
+    /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles, then
+       the builder's side marks. */
+    if (!kdrt__mul_size(count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes)) return KDRT_ERROR_SIZE_OVERFLOW;
+    *scratch = (float *)kdrt__alloc(b->allocator, bytes);
+    if (!*scratch) return KDRT_ERROR_OUT_OF_MEMORY;
+    *valid = (uint32_t *)(*scratch + 9 * count);
+    b->lo = *scratch;
+    b->hi = *scratch + 3 * count;
+    b->centroid = *scratch + 6 * count;
+    b->side = (unsigned char *)(*valid + count);
+
+    for (tri = 0; tri < m->triangle_count; ++tri) {
+        float *lo = *scratch + 3 * (size_t)tri, *hi = lo + 3 * count, *c = hi + 3 * count;
+        r = kdrt__check_triangle(m, tri, p);
         if (r != KDRT_SUCCESS) {
             if (report && report->invalid_triangle == KDRT_INVALID_ID) report->invalid_triangle = tri;
-            if (!(opt.flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) goto fail;
+            if (!(flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) return r;
             ++skipped;
             continue;
         }
@@ -2028,72 +2038,130 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
             c[a] = (p[0][a] + p[1][a] + p[2][a]) * (1.0f / 3.0f);
             c[a] = c[a] < lo[a] ? lo[a] : (c[a] > hi[a] ? hi[a] : c[a]);
         }
-        kdrt_aabb_grow(&tree->bounds, lo);
-        kdrt_aabb_grow(&tree->bounds, hi);
-        valid[n++] = tri;
+        kdrt_aabb_grow(bounds, lo);
+        kdrt_aabb_grow(bounds, hi);
+        (*valid)[(*n)++] = tri;
     }
-    r = KDRT_SUCCESS;
     if (report) report->skipped_triangles = skipped, report->degenerate_triangles = degenerate;
+    return KDRT_SUCCESS;
+}
 
-    if (opt.max_leaf_size == 0 || n == 0) {
-        /* No tree: one leaf holding every usable triangle, tested in order. */
-        r = kdrt__reserve(b.allocator, (void **)&b.nodes, &b.node_capacity, 1, sizeof(kdrt__node));
-        if (r == KDRT_SUCCESS) b.node_count = 1, r = kdrt__emit_leaf(&b, 0, valid, n, 0);
-    } else if (opt.builder == KDRT_BUILDER_SAH || opt.builder == KDRT_BUILDER_DEFAULT) {
-        kdrt__ref *refs = (kdrt__ref *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__ref));
-        if (!refs) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
-        for (i = 0; i < n; ++i) {
-            memcpy(refs[i].lo, b.lo + 3 * (size_t)valid[i], sizeof refs[i].lo);
-            memcpy(refs[i].hi, b.hi + 3 * (size_t)valid[i], sizeof refs[i].hi);
-            refs[i].tri = valid[i];
-        }
-        r = kdrt__sah_build(&b, &opt.scheduler, refs, n, tree->bounds.min, tree->bounds.max);
-    } else {
-        /* Sort once per axis by centroid; every node then filters its parent's lists. */
-        lists = (uint32_t *)kdrt__alloc(&opt.allocator, 3 * (size_t)n * sizeof(uint32_t));
-        keys = (kdrt__key *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__key));
-        if (!lists || !keys) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
-        for (a = 0; a < 3; ++a) {
-            for (i = 0; i < n; ++i) keys[i].key = b.centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
-            qsort(keys, n, sizeof *keys, kdrt__key_less);
-            for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
-        }
-        kdrt__free(&opt.allocator, keys);
-        keys = NULL;
-        r = kdrt__build_node(&b, lists, n, 0);
+/* No tree (max_leaf_size 0, or nothing to build over): one leaf holding every usable triangle,
+   tested in order. */
+static kdrt_result kdrt__build_no_tree(kdrt__builder *b, const uint32_t *valid, uint32_t n)
+{
+    kdrt_result r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, 1, sizeof(kdrt__node));
+    if (r != KDRT_SUCCESS) return r;
+    b->node_count = 1;
+    return kdrt__emit_leaf(b, 0, valid, n, 0);
+}
+
+/* The median builder: the triangles sorted once per axis by centroid; every node then filters
+   its parent's lists. */
+static kdrt_result kdrt__build_median(kdrt__builder *b, const uint32_t *valid, uint32_t n)
+{
+    uint32_t *lists = (uint32_t *)kdrt__alloc(b->allocator, 3 * (size_t)n * sizeof(uint32_t)), i;
+    kdrt__key *keys = (kdrt__key *)kdrt__alloc(b->allocator, (size_t)n * sizeof(kdrt__key));
+    kdrt_result r;
+    int a;
+    if (!lists || !keys) {
+        kdrt__free(b->allocator, keys);
+        kdrt__free(b->allocator, lists);
+        return KDRT_ERROR_OUT_OF_MEMORY;
     }
-    if (r != KDRT_SUCCESS) goto fail;
-    r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records, &vertices);
-    if (r != KDRT_SUCCESS) goto fail;
+    for (a = 0; a < 3; ++a) {
+        for (i = 0; i < n; ++i) keys[i].key = b->centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
+        qsort(keys, n, sizeof *keys, kdrt__key_less);
+        for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
+    }
+    kdrt__free(b->allocator, keys);
+    r = kdrt__build_node(b, lists, n, 0);
+    kdrt__free(b->allocator, lists);
+    return r;
+}
 
-    kdrt__shrink(b.allocator, (void **)&b.nodes, &b.node_capacity, b.node_count, sizeof(kdrt__node));
-    kdrt__shrink(b.allocator, (void **)&b.refs, &b.ref_capacity, b.ref_count, sizeof(uint32_t));
-    tree->nodes = b.nodes;
-    tree->refs = b.refs;
-    tree->stats.triangles = n;
-    tree->stats.nodes = b.node_count;
-    tree->stats.leaves = b.leaves;
-    tree->stats.max_depth = b.depth_reached;
-    tree->stats.triangle_refs = b.ref_count;
-    tree->stats.bytes = sizeof *tree + (size_t)b.node_capacity * sizeof(kdrt__node) +
-                        (size_t)b.ref_capacity * sizeof(uint32_t) + (size_t)records * sizeof(kdrt__triangle) +
+/* The SAH builder, from a reference per usable triangle: its box. */
+static kdrt_result kdrt__build_sah(kdrt__builder *b, const kdrt_scheduler *scheduler, const uint32_t *valid,
+                                   uint32_t n, const kdrt_aabb *bounds)
+{
+    kdrt__ref *refs = (kdrt__ref *)kdrt__alloc(b->allocator, (size_t)n * sizeof(kdrt__ref));
+    uint32_t i;
+    if (!refs) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n; ++i) {
+        memcpy(refs[i].lo, b->lo + 3 * (size_t)valid[i], sizeof refs[i].lo);
+        memcpy(refs[i].hi, b->hi + 3 * (size_t)valid[i], sizeof refs[i].hi);
+        refs[i].tri = valid[i];
+    }
+    return kdrt__sah_build(b, scheduler, refs, n, bounds->min, bounds->max);
+}
+
+/* Dispatch: the nodes and leaf references into b, by the builder the options name. */
+static kdrt_result kdrt__build_nodes(kdrt__builder *b, const kdrt_build_options *opt, const uint32_t *valid,
+                                     uint32_t n, const kdrt_aabb *bounds)
+{
+    if (opt->max_leaf_size == 0 || n == 0) return kdrt__build_no_tree(b, valid, n);
+    if (opt->builder == KDRT_BUILDER_SAH || opt->builder == KDRT_BUILDER_DEFAULT)
+        return kdrt__build_sah(b, &opt->scheduler, valid, n, bounds);
+    return kdrt__build_median(b, valid, n);
+}
+
+/* Stats: the builder's arrays, trimmed, go to the tree, and its statistics are filled in. */
+static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triangles, uint32_t records,
+                              uint32_t vertices)
+{
+    kdrt__shrink(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count, sizeof(kdrt__node));
+    kdrt__shrink(b->allocator, (void **)&b->refs, &b->ref_capacity, b->ref_count, sizeof(uint32_t));
+    tree->nodes = b->nodes;
+    tree->refs = b->refs;
+    tree->stats.triangles = triangles;
+    tree->stats.nodes = b->node_count;
+    tree->stats.leaves = b->leaves;
+    tree->stats.max_depth = b->depth_reached;
+    tree->stats.triangle_refs = b->ref_count;
+    tree->stats.bytes = sizeof *tree + (size_t)b->node_capacity * sizeof(kdrt__node) +
+                        (size_t)b->ref_capacity * sizeof(uint32_t) + (size_t)records * sizeof(kdrt__triangle) +
                         (size_t)vertices * 3 * sizeof(float);
-    tree->stats.sah_cost = kdrt__sah_cost(tree, b.sah_trav, b.sah_isect);
-    kdrt__free(&opt.allocator, lists);
+    tree->stats.sah_cost = kdrt__sah_cost(tree, b->sah_trav, b->sah_isect);
+}
+
+KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
+                                     kdrt_tree **out_tree, kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt_triangles m;
+    kdrt__builder b;
+    kdrt_tree *tree;
+    float *scratch = NULL;
+    uint32_t *valid = NULL, n = 0, records = 0, vertices = 0;
+    kdrt_result r;
+
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->invalid_triangle = KDRT_INVALID_ID;
+    }
+    if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_tree = NULL;
+    r = kdrt__check_view(mesh, &m);
+    if (r == KDRT_SUCCESS) r = kdrt__check_options(&opt);
+    if (r != KDRT_SUCCESS) return r;
+    kdrt__builder_init(&b, &opt, &m);
+    tree = kdrt__tree_new(&opt, &m);
+    if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
+
+    r = kdrt__prepare_triangles(&b, &m, opt.flags, &tree->bounds, &scratch, &valid, &n, report);
+    if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, &opt, valid, n, &tree->bounds);
+    if (r == KDRT_SUCCESS)
+        r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records, &vertices);
+    if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n, records, vertices);
     kdrt__free(&opt.allocator, scratch);
+    if (r != KDRT_SUCCESS) {
+        kdrt__free(&opt.allocator, b.nodes);
+        kdrt__free(&opt.allocator, b.refs);
+        kdrt_tree_free(tree); /* and the triangles packed so far */
+        return r;
+    }
     *out_tree = tree;
     return KDRT_SUCCESS;
-
-fail:
-    kdrt__free(&opt.allocator, keys);
-    kdrt__free(&opt.allocator, lists);
-    kdrt__free(&opt.allocator, scratch);
-    kdrt__free(&opt.allocator, b.nodes);
-    kdrt__free(&opt.allocator, b.refs);
-    kdrt__free(&opt.allocator, tree->triangles);
-    kdrt__free(&opt.allocator, tree->vertices);
-    kdrt__free(&opt.allocator, tree);
-    return r;
 }
 
 KDRT_API void kdrt_tree_free(kdrt_tree *tree)
