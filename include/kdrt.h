@@ -452,7 +452,7 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
 KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
                             kdrt_ray *out);
 
-/* ---- Optics (see OPTICS): reflection, refraction and Fresnel reflectance ---- */
+/* ==== optics (see OPTICS): reflection, refraction, Fresnel reflectance, the medium stack ==== */
 
 /* The mirror direction of incident about the plane with this normal, as a unit vector. Neither
    vector needs unit length; the normal may face either way. A NaN or infinite component or an
@@ -532,8 +532,12 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #endif /* KDRT_H */
 
 /* ============================================================================================ */
+/*                                        IMPLEMENTATION                                        */
+/* ============================================================================================ */
 #if defined(KDRT_IMPLEMENTATION) && !defined(KDRT__IMPLEMENTED)
 #define KDRT__IMPLEMENTED
+
+/* ==== configuration: libc, KDRT_ASSERT, KDRT_MALLOC / KDRT_FREE ==== */
 
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
@@ -555,6 +559,8 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* ==== the tree's layout: nodes, triangle records, the tree ==== */
 
 /* 8-byte node (pbrt-v3's layout). bits: low 2 = axis 0..2, or KDRT__LEAF; high 30 = index of
    the above child (the below child follows its parent), or a leaf's triangle count. Only the
@@ -614,7 +620,7 @@ struct kdrt_tree {
     kdrt_tree_stats stats;
 };
 
-/* ---- small helpers ---- */
+/* ==== small helpers: floats, cross products, allocation ==== */
 
 /* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
 static int kdrt__finite(float x) { return x - x == 0.0f; }
@@ -666,6 +672,8 @@ static int kdrt__mul_size(size_t a, size_t b, size_t *out)
     *out = a * b;
     return 1;
 }
+
+/* ==== input: reading and checking the caller's triangles ==== */
 
 static size_t kdrt__stride(const kdrt_triangles *m)
 {
@@ -744,7 +752,7 @@ static int kdrt__zero_area(float p[3][3])
     return n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0;
 }
 
-/* ---- results, boxes ---- */
+/* ==== results and boxes ==== */
 
 KDRT_API const char *kdrt_result_string(kdrt_result result)
 {
@@ -824,6 +832,8 @@ KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aab
     }
     return KDRT_SUCCESS;
 }
+
+/* ==== rays: setup and the slab test ==== */
 
 /* pbrt's gamma(3) doubled: (split - o) * (1 / d) is three roundings away from the true distance,
    so the true value lies within t * (1 -+ KDRT__T_SLACK). */
@@ -906,7 +916,7 @@ KDRT_API int kdrt_aabb_intersect_ray(const kdrt_aabb *box, const kdrt_ray *ray, 
     return 1;
 }
 
-/* ---- build ---- */
+/* ==== builder state, growing arrays, leaves ==== */
 
 KDRT_API kdrt_build_options kdrt_default_build_options(void)
 {
@@ -984,6 +994,21 @@ static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32
     return KDRT_SUCCESS;
 }
 
+/* ==== median builder ==== */
+
+/* A triangle's centroid on one axis, for the median builder's sort. */
+typedef struct kdrt__key {
+    float key;
+    uint32_t tri;
+} kdrt__key;
+
+static int kdrt__key_less(const void *pa, const void *pb)
+{
+    const kdrt__key *a = (const kdrt__key *)pa, *b = (const kdrt__key *)pb;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    return a->tri < b->tri ? -1 : (a->tri > b->tri); /* a total order: same tree on every libc */
+}
+
 /* Marks each triangle's side of the plane; returns the counts below and above. */
 static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, int axis, float split,
                            uint32_t *below, uint32_t *above)
@@ -1051,7 +1076,7 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     return r;
 }
 
-/* ---- SAH builder: binned large nodes, events kept in order below, perfect splits ---- */
+/* ==== SAH builder: perfect splits (clipping a triangle to a node) ==== */
 
 /* A reference: the box of the part of triangle tri that lies inside its node. */
 typedef struct kdrt__ref {
@@ -1137,6 +1162,8 @@ static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis
     return result;
 }
 
+/* ==== arena ==== */
+
 /* Scratch memory given back in stack order, as the depth-first build needs it: a list of chunks
    kept for reuse, so once the path down the tree is warm a node costs no allocation. */
 typedef struct kdrt__chunk {
@@ -1211,6 +1238,8 @@ static void kdrt__arena_free(kdrt__arena *arena)
     arena->current = NULL;
 }
 
+/* ==== events ==== */
+
 /* Events of the exact sweep, one uint64_t each: a float's bits turned so that unsigned order is
    numeric order (-0 taken as +0) in the high 32 bits, the event type in bits 30-31 and the index
    of its reference in the node below. At equal positions the sweep takes ends, then planars, then
@@ -1272,6 +1301,8 @@ static void kdrt__sort_keys(uint64_t *a, size_t n)
         hi = stack[--sp], lo = stack[--sp];
     }
 }
+
+/* ==== SAH sweep: costing candidate planes, exact and binned ==== */
 
 typedef struct kdrt__plane {
     int axis; /* -1: no split beats a leaf */
@@ -1418,6 +1449,8 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
 #ifndef KDRT__SAH_EXACT_MAX /* overridable only to measure the choice (README) */
 #define KDRT__SAH_EXACT_MAX 128u
 #endif
+
+/* ==== SAH node: choosing the plane, splitting references and events ==== */
 
 static float kdrt__half_area(const float lo[3], const float hi[3])
 {
@@ -1629,6 +1662,8 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
     return r;
 }
 
+/* ==== parallel top and join ==== */
+
 /* A parallel build cuts the top of the tree, serially, into subtrees built as independent tasks
    and then joined in depth-first order. Where it cuts depends only on the input, never on the
    threads, so every scheduler (or none) gives the same tree. */
@@ -1775,17 +1810,7 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
     return r;
 }
 
-typedef struct kdrt__key {
-    float key;
-    uint32_t tri;
-} kdrt__key;
-
-static int kdrt__key_less(const void *pa, const void *pb)
-{
-    const kdrt__key *a = (const kdrt__key *)pa, *b = (const kdrt__key *)pb;
-    if (a->key != b->key) return a->key < b->key ? -1 : 1;
-    return a->tri < b->tri ? -1 : (a->tri > b->tri); /* a total order: same tree on every libc */
-}
+/* ==== packing: the triangles laid out for the traversal ==== */
 
 /* A hash of a position's bits (MurmurHash3's finaliser over the three words). */
 static uint32_t kdrt__hash_position(const float p[3])
@@ -1891,6 +1916,8 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
     return KDRT_SUCCESS;
 }
 
+/* ==== depth limit and SAH cost ==== */
+
 static uint32_t kdrt__default_depth(uint32_t n)
 {
     uint32_t log2n = 0, depth;
@@ -1937,6 +1964,8 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
         at.hi[axis] = node->u.split;
     }
 }
+
+/* ==== kdrt_tree_build and its steps ==== */
 
 /* Options: KDRT_ERROR_INVALID_OPTION for an unknown builder, intersector or flag or a cost out
    of range, KDRT_ERROR_NULL_ARGUMENT for an allocator with one hook of the two. */
@@ -2183,6 +2212,8 @@ KDRT_API void kdrt_tree_get_stats(const kdrt_tree *tree, kdrt_tree_stats *out_st
     *out_stats = tree->stats;
 }
 
+/* ==== inspection ==== */
+
 KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree)
 {
     return tree ? tree->stats.nodes : 0u;
@@ -2243,7 +2274,7 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
     return tree ? tree->bounds : kdrt_aabb_empty();
 }
 
-/* ---- queries ---- */
+/* ==== intersection tests ==== */
 
 /* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
    that the answer does not depend on the order of the tests. */
@@ -2312,6 +2343,8 @@ static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
     return kdrt__accept(best, tri->id, t, u, v, s);
 }
+
+/* ==== traversal ==== */
 
 #ifndef KDRT__MAILBOX
 #define KDRT__MAILBOX 32u /* a power of two */
@@ -2437,7 +2470,7 @@ KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
     return tree && ray && kdrt__traverse(tree, ray, &hit, 1, NULL);
 }
 
-/* ---- secondary rays ---- */
+/* ==== secondary rays ==== */
 
 KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
                               float normal[3])
@@ -2514,7 +2547,7 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
 }
 
 
-/* ---- optics: reflection, refraction, Fresnel, the medium stack ---- */
+/* ==== optics: reflection, refraction, Fresnel reflectance ==== */
 
 static int kdrt__finite_positive(float x) { return x > 0.0f && kdrt__finite(x); }
 
@@ -2636,6 +2669,8 @@ KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta)
     r0 *= r0, m = 1.0 - c;
     return (float)(r0 + (1.0 - r0) * m * m * m * m * m);
 }
+
+/* ==== media stack ==== */
 
 typedef char kdrt__media_stack_has_room[KDRT_MEDIA_STACK_CAPACITY >= 1 ? 1 : -1];
 
