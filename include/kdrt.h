@@ -1,4 +1,5 @@
-/* kdrt.h - v0.1.0 - kd-tree ray tracing over your own triangle buffers. Public domain-like (MIT-0).
+/* kdrt.h - v0.1.0 - kd-tree ray tracing over your own triangle buffers.
+   Public domain-like (MIT-0, see LICENSE at the end).
 
    USAGE
      In exactly one C or C++ file, before including this header:
@@ -29,13 +30,33 @@
 
          kdrt_tree_free(tree);
 
-   CONFIGURATION (define before the implementation)
-     KDRT_STATIC              all functions static
-     KDRT_ASSERT(x)           internal invariant checks; default: assert() from <assert.h>
-     KDRT_MALLOC(size, user)  default allocator when options.allocator is all zero;
-     KDRT_FREE(ptr, user)     define both or neither (default: malloc and free)
-     KDRT_TRAVERSAL_STATS     also compile kdrt_intersect_counted(), which counts a query's work
-                              (nodes, leaves, triangle tests); other queries are unchanged
+   CONFIGURATION
+     Every macro a user may define; all are optional. Names beginning KDRT__ are internal.
+     In the one file with the implementation, before including the header:
+       KDRT_IMPLEMENTATION       compile the implementation into this file
+       KDRT_STATIC               every function static (the implementation is then private to it)
+       KDRT_ASSERT(x)            internal invariant checks; default: assert() from <assert.h>
+       KDRT_MALLOC(size, user)   default allocator when options.allocator is all zero;
+       KDRT_FREE(ptr, user)      define both or neither (default: malloc and free)
+       KDRT_TRAVERSAL_STATS      also compile kdrt_intersect_counted(), which counts a query's
+                                 work (nodes, leaves, triangle tests); the other queries are
+                                 unchanged. Define it too where kdrt_intersect_counted() is called.
+       KDRT_SAH_BINS             bins per axis of the SAH builder's binned sweep: 2 to 1024,
+                                 default 256
+       KDRT_SAH_EXACT_MAX        SAH nodes of at most this many triangle references are split
+                                 by the exact sweep, larger ones by the binned one: 0 to
+                                 4294967295, default 128 (the top levels a parallel build
+                                 splits before its tasks are binned whatever the value)
+     KDRT_SAH_BINS and KDRT_SAH_EXACT_MAX exist to measure the choice: the defaults are the
+     measured best, and any value in range builds a valid tree, if not the same one. A value out
+     of range stops the compilation with an #error.
+     In every file, the same everywhere:
+       KDRT_API                  the functions' linkage (default: extern, or static under
+                                 KDRT_STATIC), e.g. a DLL export attribute
+       KDRT_MEDIA_STACK_CAPACITY media a kdrt_media_stack holds: at least 1, default 16; it sizes
+                                 the struct
+     Fixed, not for defining: KDRT_MAX_DEPTH (64, the deepest tree; options.max_depth is the
+     knob), KDRT_MAX_TRIANGLES and KDRT_INVALID_ID.
 
    OWNERSHIP
      The tree borrows the caller's buffers: kdrt_triangles.positions and .indices must stay alive
@@ -43,12 +64,17 @@
      leaves' triangle references and a copy of the triangles laid out for the intersection tests
      (THE TREE), which kdrt_intersect() and kdrt_occluded() read; kdrt_hit_surface() and
      kdrt_spawn_ray() read the caller's buffers. Moving or editing the vertices requires a new
-     build. The kdrt_triangles struct itself may be discarded after the build.
+     build. The kdrt_triangles struct itself may be discarded after the build. Everything the
+     tree owns comes from options.allocator (or KDRT_MALLOC) and goes back to it in
+     kdrt_tree_free(); a kdrt_media_stack is plain data the caller owns.
 
    THREAD SAFETY
-     No global state. kdrt_intersect() and kdrt_occluded() read a const tree, allocate nothing and
-     may be called from any number of threads at once. Builds of different trees may run at once,
-     and one SAH build may run its tasks on many threads through options.scheduler.
+     No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
+     may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(), the
+     inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
+     until none is running. Builds of different trees may run at once, and one SAH build may run
+     its tasks on many threads through options.scheduler, which then calls options.allocator
+     from those threads.
 
    ERRORS
      Functions that can fail return kdrt_result; kdrt_result_string() names each code. A failed
@@ -58,7 +84,7 @@
      KDRT_BUILD_SKIP_INVALID_TRIANGLES), counts beyond what the tree can address, and allocation
      failure. Zero triangles is valid: the tree is empty and every ray misses.
 
-   QUERIES AND NUMERICAL GUARANTEES
+   QUERIES AND GUARANTEES
      A ray is org + t * dir for t in [max(tmin, 0), tmax]; dir need not be normalised. A ray with a
      NaN or infinite origin or direction, an all-zero direction, a NaN tmin or tmax, or
      tmin > tmax misses everything.
@@ -67,8 +93,7 @@
      builder and leaf size returns exactly what max_leaf_size = 0 (test every triangle) returns
      for the same ray, with one exception: a triangle that a ray misses by less than the test's
      rounding error but still "hits" can lie beyond a split plane the ray never crosses, and the
-     tree, rightly, never tests it. (Seen in the tests only with KDRT_INTERSECTOR_FAST and the
-     SAH builder: an edge 1.8e-16 above an axis-parallel ray in the plane z = 0.)
+     tree, rightly, never tests it.
      Triangles are intersected in single precision with no epsilon; a ray meeting a triangle
      exactly on its edge counts as a hit. options.intersector picks the test for a tree:
        KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
@@ -76,23 +101,24 @@
          hits at least one of them, even exactly through an edge or a vertex: no ray slips
          through a closed mesh. This holds whatever the compiler fuses into FMAs (-march=native,
          -ffp-contract=fast, Clang on ARM): the edge functions are formed in double, where the
-         products of floats are exact (the tests build a copy with -mfma -ffp-contract=fast).
+         products of floats are exact.
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it.
      A ray lying exactly in a triangle's plane and meeting it may hit it or miss it: the
      watertight test shears with a rounded dir ratio, which turns the triangle seen edge-on into
      a sliver, and that freedom is what keeps a ray leaving a closed mesh through an edge of such
      a triangle from slipping through. The t of such a hit is a quotient of rounding errors: it
-     lies where the ray is within the triangle's bounding box, and no closer to the truth. Both tests agree with a double-precision reference on the triangle and, to a few
-     ulps, on t everywhere else. There is no double-precision query: the vertices are floats already, and the
-     tests and kdrt-bench --accuracy measure no mismatch left that doubles would remove. Zero-area triangles (coincident
-     or collinear corners: the edges' cross product, evaluated in double precision, is exactly
-     zero) are left out of the tree at build time and never hit; they are valid input, counted in
-     kdrt_build_report.degenerate_triangles. Hits are accepted wherever they are found and the traversal stops only once
-     every node nearer than the best hit has been visited, so a hit lying beyond the leaf it was
-     found in is never returned ahead of a nearer one. Split-plane distances are widened by a
-     bound on their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit
-     both sides, so rounding cannot make the traversal skip a node the ray passes through.
+     lies where the ray is within the triangle's bounding box, and no closer to the truth.
+     Both tests agree with a double-precision reference on the triangle and, to a few ulps, on t
+     everywhere else. There is no double-precision query: the vertices are floats already.
+     Zero-area triangles (coincident or collinear corners: the edges' cross product, evaluated
+     in double precision, is exactly zero) are left out of the tree at build time and never hit;
+     they are valid input, counted in kdrt_build_report.degenerate_triangles.
+     Hits are accepted wherever they are found and the traversal stops only once every node
+     nearer than the best hit has been visited, so a hit lying beyond the leaf it was found in
+     is never returned ahead of a nearer one. Split-plane distances are widened by a bound on
+     their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit both
+     sides, so rounding cannot make the traversal skip a node the ray passes through.
      Barycentrics: the hit point is (1 - u - v) * p0 + u * p1 + v * p2.
      Secondary rays: start them with kdrt_spawn_ray(), which offsets the hit point along the
      geometric normal by a distance relative to its magnitude, so a reflected, refracted or shadow
@@ -108,39 +134,37 @@
      filtered from their parent's in order, so a level costs O(n). Depth is bounded by
      options.max_depth (at most KDRT_MAX_DEPTH), which bounds the traversal's fixed stack.
      KDRT_BUILDER_SAH chooses each split by the surface area heuristic (Wald & Havran 2006). A
-     node with more than 128 triangles is binned: 256 equal bins per axis, the planes between
-     them costed from counts of the triangles' box faces, O(n). Below that every face of every
-     triangle's box on every axis is a candidate: the start, end and planar events are sorted
-     once where a subtree comes down to 128 triangles and kept in order from there (Wald &
-     Havran's O(n log n) build): a split renumbers the events of the triangles on one side, and
-     only the events of the triangles it cuts are made again and sorted.
+     node with more than KDRT_SAH_EXACT_MAX (128) triangle references is binned: KDRT_SAH_BINS
+     (256) equal bins per axis, the planes between them costed from counts of the triangles' box
+     faces, O(n); where no plane between bins beats a leaf, every candidate below is tried
+     before the node is made one. At or below KDRT_SAH_EXACT_MAX every face of every triangle's
+     box on every axis is a candidate: the start, end and planar events are sorted once where a
+     subtree comes down to that size and kept in order from there (Wald & Havran's O(n log n)
+     build): a split renumbers the events of the triangles on one side, and only the events of
+     the triangles it cuts are made again and sorted.
      A triangle cut by the plane is clipped to the node's box and that polygon split by the
      plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when
      it holds at most max_leaf_size triangles, at max_depth, or when no split is cheaper than
-     testing all its triangles (the costs are options). It builds slower than the median and traces several times faster:
-     it is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
+     testing all its triangles (the costs are options). It is the default (KDRT_BUILDER_DEFAULT
+     and kdrt_default_build_options()).
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
-     split on the calling thread; the subtrees below are independent tasks handed to
-     options.scheduler, then joined in depth-first order. The cut depends only on the input,
+     split on the calling thread; the subtrees below, at most 64, are independent tasks handed
+     to options.scheduler, then joined in depth-first order. The cut depends only on the input,
      so the tree is the same for any scheduler, thread count or task order, and without one.
-     max_leaf_size = 0 means no tree: every query tests every triangle (the baseline of the
-     benchmark), through the same API.
+     max_leaf_size = 0 means no tree: every query tests every triangle, through the same API.
      Memory, whatever the builder: 8 bytes a node (pbrt-v3's layout) and 4 a reference (a leaf
      refers to its triangles by a run of references; a triangle crossing leaves is referred to by
      each), then the triangle data the intersection tests read, copied at the end of the build so
      that a test does not chase the caller's index buffer to three scattered vertices: a 16-byte
      record per triangle (its corners' indices and the caller's triangle index) and the corners'
      positions, 12 bytes each, each distinct position once (compared bit for bit, so a soup shares
-     its corners as an indexed mesh does): about 6 bytes a triangle in a closed mesh, where a
-     vertex has six triangles around it. Records and positions lie in the order a depth-first walk
-     of the leaves first meets them, so a leaf's triangles and its neighbours' lie close together.
-     Skipped and zero-area triangles are not copied. kdrt_tree_stats.bytes counts it all: over
-     the benchmark's meshes of 1,000 triangles or more, SAH trees of leaf size 4 with the default
-     costs take 48 to 63 bytes a triangle, about 22 of them the copy, and max_leaf_size = 0 takes
-     26.
+     its corners as an indexed mesh does). Records and positions lie in the order a depth-first
+     walk of the leaves first meets them, so a leaf's triangles and its neighbours' lie close
+     together. Skipped and zero-area triangles are not copied. kdrt_tree_stats.bytes counts it
+     all.
      Inspection: kdrt_tree_node_count(), kdrt_tree_node() (a node's kind, split, children, box,
      depth and leaf references) and kdrt_tree_reference() (the caller's triangle a reference
-     names) walk a built tree without its internals; tools/kdrt-inspect is built on them.
+     names) walk a built tree without its internals.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -160,7 +184,7 @@
      (incident (1, 0, -0.75), normal (0, 0, 1), eta 1.25), and the decision can only be wrong when
      the exact k is within a few double-precision ulps of 0, far closer than a float input's own
      rounding. The refracted direction is within 2^-22 rad of Snell's law evaluated in
-     double at every angle, the ill-conditioned ones near the critical angle included (tested).
+     double at every angle, the ill-conditioned ones near the critical angle included.
      The medium stack is the original course ray tracer's, keyed by object: entering an object
      pushes its index of refraction, leaving it removes that object's entry wherever it is (so
      overlapping and nested media work), and outside_ior (the original's AIR_INDEX_MEDIUM) lies
@@ -219,7 +243,8 @@
 extern "C" {
 #endif
 
-/* The deepest tree a build makes; the traversal's stack holds this many entries. */
+/* The deepest tree a build makes; the traversal's stack holds this many entries. A fixed
+   constant, not a configuration macro: options.max_depth is the knob, up to this. */
 #define KDRT_MAX_DEPTH 64
 /* Most triangles a tree accepts (a leaf's count and a child's index are 30-bit fields). */
 #define KDRT_MAX_TRIANGLES 0x3FFFFFFFu
@@ -293,7 +318,7 @@ typedef enum kdrt_builder {
 typedef enum kdrt_intersector {
     KDRT_INTERSECTOR_DEFAULT = 0,    /* KDRT_INTERSECTOR_WATERTIGHT */
     KDRT_INTERSECTOR_WATERTIGHT = 1, /* Woop, Benthin & Wald 2013: no ray slips between triangles
-                                        that share an edge or a vertex (see NUMERICAL GUARANTEES) */
+                                        that share an edge or a vertex (see QUERIES AND GUARANTEES) */
     KDRT_INTERSECTOR_FAST = 2        /* Moeller & Trumbore 1997: rays through shared edges and
                                         vertices may pass between the triangles */
 } kdrt_intersector;
@@ -326,11 +351,8 @@ typedef struct kdrt_build_options {
 } kdrt_build_options;
 
 #define KDRT_DEFAULT_MAX_LEAF_SIZE 4
-/* Picked by measurement (README, "Choosing the SAH costs": tools/tune_sah.py over 55 settings,
-   four meshes, primary and diffuse rays): K_T / K_I = 1.5 with empty bonus 0.1 traces within 2%
-   of the fastest setting, builds 16% faster and takes 20% less memory than Wald & Havran 2006's
-   15, 20 and 0.2 (Mitsuba alike). pbrt-v3's 1, 80 and 0.5 traces 18-28% slower here, for its
-   larger empty bonus: every bonus from 0.5 up does. */
+/* The SAH costs a zero option stands for, chosen by measurement: K_T / K_I = 1.5, with an
+   empty bonus of 0.1. */
 #define KDRT_DEFAULT_SAH_TRAVERSAL_COST 30.0f
 #define KDRT_DEFAULT_SAH_INTERSECTION_COST 20.0f
 #define KDRT_DEFAULT_SAH_EMPTY_BONUS 0.1f
@@ -417,7 +439,7 @@ KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
 
-/* The work one query did, for measuring (bench/kdrt-ray-costs). Counting is compiled in only
+/* The work one query did, for measuring. Counting is compiled in only
    where KDRT_TRAVERSAL_STATS is defined before the implementation; kdrt_intersect_counted()
    exists only there, and kdrt_intersect() stays free of it. */
 typedef struct kdrt_traversal_stats {
@@ -473,12 +495,12 @@ KDRT_API float kdrt_fresnel_dielectric(float cos_i, float eta);
 KDRT_API void kdrt_fresnel_dielectric_sp(float cos_i, float eta, float *rs, float *rp);
 /* Schlick's approximation R0 + (1 - R0) (1 - cos)^5, R0 = ((eta - 1) / (eta + 1))^2, with cos the
    cosine on the less dense side (cos_t when eta > 1; 1 on total internal reflection). Cheaper,
-   and off by up to 0.036 for glass (eta 1.5 or 1/1.5, worst about 85 degrees from air, 42 from
-   glass) and 0.060 for water (1.333): measured by tests/test_optics.cpp. Same inputs and special
-   cases as kdrt_fresnel_dielectric(). */
+   and off by up to 0.036 for glass (eta 1.5 or 1/1.5) and 0.060 for water (1.333). Same inputs
+   and special cases as kdrt_fresnel_dielectric(). */
 KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta);
 
-/* The medium stack (see OPTICS). Define KDRT_MEDIA_STACK_CAPACITY the same in every file. */
+/* The medium stack (see OPTICS). KDRT_MEDIA_STACK_CAPACITY (at least 1) sizes the struct: define
+   it the same in every file. */
 #ifndef KDRT_MEDIA_STACK_CAPACITY
 #define KDRT_MEDIA_STACK_CAPACITY 16
 #endif
@@ -554,6 +576,24 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #ifndef KDRT_MALLOC
 #define KDRT_MALLOC(size, user) ((void)(user), malloc(size))
 #define KDRT_FREE(ptr, user) ((void)(user), free(ptr))
+#endif
+
+/* The SAH builder's two measured choices (see CONFIGURATION). The bins' counts live on the
+   stack, 24 bytes a bin. */
+#if defined(KDRT__SAH_BINS) || defined(KDRT__SAH_EXACT_MAX)
+#error "kdrt: KDRT__SAH_BINS and KDRT__SAH_EXACT_MAX are now KDRT_SAH_BINS and KDRT_SAH_EXACT_MAX"
+#endif
+#ifndef KDRT_SAH_BINS
+#define KDRT_SAH_BINS 256u
+#endif
+#if KDRT_SAH_BINS < 2 || KDRT_SAH_BINS > 1024
+#error "kdrt: KDRT_SAH_BINS must be 2 to 1024"
+#endif
+#ifndef KDRT_SAH_EXACT_MAX
+#define KDRT_SAH_EXACT_MAX 128u
+#endif
+#if KDRT_SAH_EXACT_MAX < 0 || KDRT_SAH_EXACT_MAX > 0xFFFFFFFF
+#error "kdrt: KDRT_SAH_EXACT_MAX must be 0 to 4294967295"
 #endif
 
 #ifdef __cplusplus
@@ -1384,7 +1424,7 @@ static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, siz
     }
 }
 
-/* Below KDRT__SAH_EXACT_MAX references every candidate plane is tried, from each axis's events
+/* At most KDRT_SAH_EXACT_MAX references, every candidate plane is tried, from each axis's events
    kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
    split in order at every node, so that a node costs O(n) and only the events of the references
    its plane cuts are made and sorted again. */
@@ -1409,17 +1449,14 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
     return KDRT_SUCCESS;
 }
 
-/* Binned sweep for large nodes: each axis cut into KDRT__SAH_BINS equal bins, a reference counted
+/* Binned sweep for large nodes: each axis cut into KDRT_SAH_BINS equal bins, a reference counted
    in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
-#ifndef KDRT__SAH_BINS /* overridable only to measure the choice (README) */
-#define KDRT__SAH_BINS 256u
-#endif
 
 static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n, const float lo[3],
                                const float hi[3], float inv_area, kdrt__plane *best)
 {
-    const uint32_t bins = KDRT__SAH_BINS;
-    uint32_t starts[3][KDRT__SAH_BINS], ends[3][KDRT__SAH_BINS], r, i;
+    const uint32_t bins = KDRT_SAH_BINS;
+    uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS], r, i;
     float scale[3];
     int k;
     memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
@@ -1443,12 +1480,6 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
         }
     }
 }
-
-/* Nodes with more references than this are binned; below it every candidate is tried, from
-   events kept sorted (kdrt__events). */
-#ifndef KDRT__SAH_EXACT_MAX /* overridable only to measure the choice (README) */
-#define KDRT__SAH_EXACT_MAX 128u
-#endif
 
 /* ==== SAH node: choosing the plane, splitting references and events ==== */
 
@@ -1620,7 +1651,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
     kdrt__plane plane;
     kdrt_result r;
 
-    if (!events && n <= KDRT__SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
+    if (!events && n <= KDRT_SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
         /* Down to the exact region: each axis's events sorted, once for the whole subtree. */
         r = kdrt__sorted_events(arena, refs, n, &entry);
         if (r != KDRT_SUCCESS) return r;
@@ -1830,8 +1861,8 @@ static uint32_t kdrt__hash_position(const float p[3])
    position once (compared bit for bit, so the shared corners of a soup are shared too). A leaf's
    triangles and its neighbours' thus lie close together in both arrays. The floats are the
    caller's, so no answer changes, and neither does the order: ties are broken by the caller's
-   triangle index, which each record keeps. (Records holding their corners' floats, 40 bytes, are
-   a few per cent faster on primary rays but take the tree past 80 bytes a triangle.) */
+   triangle index, which each record keeps. (A record indexes its corners rather than hold their
+   floats, which would take 40 bytes instead of 16 and share nothing.) */
 static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_triangles *m,
                                         const kdrt__node *nodes, uint32_t *refs, uint32_t ref_count,
                                         kdrt_tree *tree, uint32_t *out_triangles, uint32_t *out_vertices)
@@ -2346,9 +2377,8 @@ static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri
 
 /* ==== traversal ==== */
 
-#ifndef KDRT__MAILBOX
-#define KDRT__MAILBOX 32u /* a power of two */
-#endif
+#define KDRT__MAILBOX 32u /* entries; a power of two, as the traversal masks by it */
+typedef char kdrt__mailbox_is_a_power_of_two[(KDRT__MAILBOX & (KDRT__MAILBOX - 1u)) == 0 ? 1 : -1];
 
 typedef struct kdrt__todo {
     uint32_t node;
