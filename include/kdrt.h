@@ -260,7 +260,7 @@ typedef enum kdrt_result {
     KDRT_ERROR_NON_FINITE_VERTEX,  /* a triangle has a NaN or infinite coordinate */
     KDRT_ERROR_SIZE_OVERFLOW,      /* a count or byte size beyond what can be addressed */
     KDRT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
-    KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY media entered */
+    KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY entered */
     KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
     KDRT_ERROR_INVALID_IOR         /* an index of refraction that is NaN, infinite, 0 or negative */
 } kdrt_result;
@@ -273,9 +273,9 @@ typedef struct kdrt_aabb {
 /* A borrowed view of the caller's triangles (see OWNERSHIP). */
 typedef struct kdrt_triangles {
     const float *positions;    /* x, y, z of vertex 0; vertex i starts i * stride bytes later */
-    size_t position_stride;    /* bytes from one vertex to the next: 0 means packed (12), else >= 12 */
+    size_t position_stride;    /* bytes from one vertex to the next: 0 is packed (12), else >= 12 */
     uint32_t vertex_count;     /* vertices readable at positions */
-    const uint32_t *indices;   /* 3 vertex indices per triangle, or NULL: triangle i is 3i, 3i+1, 3i+2 */
+    const uint32_t *indices;   /* 3 vertex indices a triangle; NULL: triangle i is 3i, 3i+1, 3i+2 */
     uint32_t triangle_count;
 } kdrt_triangles;
 
@@ -318,7 +318,7 @@ typedef enum kdrt_builder {
 typedef enum kdrt_intersector {
     KDRT_INTERSECTOR_DEFAULT = 0,    /* KDRT_INTERSECTOR_WATERTIGHT */
     KDRT_INTERSECTOR_WATERTIGHT = 1, /* Woop, Benthin & Wald 2013: no ray slips between triangles
-                                        that share an edge or a vertex (see QUERIES AND GUARANTEES) */
+                                        that share an edge or a vertex (QUERIES AND GUARANTEES) */
     KDRT_INTERSECTOR_FAST = 2        /* Moeller & Trumbore 1997: rays through shared edges and
                                         vertices may pass between the triangles */
 } kdrt_intersector;
@@ -416,25 +416,29 @@ typedef struct kdrt_node_info {
     int is_leaf;              /* 1 for a leaf, 0 for an inner node */
     int axis;                 /* inner node: split axis, 0 x, 1 y, 2 z; leaf: -1 */
     float split;              /* inner node: plane position on axis; leaf: 0 */
-    uint32_t below;           /* inner node: child on the low side (always index + 1); leaf: KDRT_INVALID_ID */
+    uint32_t below;           /* inner node: low side child (index + 1); leaf: KDRT_INVALID_ID */
     uint32_t above;           /* inner node: child on the high side; leaf: KDRT_INVALID_ID */
     uint32_t depth;           /* the root is depth 0 */
-    kdrt_aabb bounds;         /* kdrt_tree_bounds() cut by the ancestors' splits (as sah_cost uses) */
+    kdrt_aabb bounds;         /* kdrt_tree_bounds() cut by the ancestors' splits (as in sah_cost) */
     uint32_t triangle_count;  /* leaf: how many triangles it refers to; inner node: 0 */
     uint32_t first_reference; /* leaf: its references are first_reference .. + triangle_count - 1 */
 } kdrt_node_info;
 /* Nodes in the tree (kdrt_tree_stats.nodes); NULL gives 0. */
 KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree);
 /* Describes node index. KDRT_ERROR_NULL_ARGUMENT for a NULL tree or out_info,
-   KDRT_ERROR_INDEX_OUT_OF_RANGE for index >= kdrt_tree_node_count(); *out_info is then untouched. */
-KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_node_info *out_info);
+   KDRT_ERROR_INDEX_OUT_OF_RANGE for index >= kdrt_tree_node_count(); *out_info is then
+   untouched. */
+KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index,
+                                    kdrt_node_info *out_info);
 /* The caller's triangle index (as in kdrt_hit.triangle) that leaf reference number reference refers
    to, for reference < kdrt_tree_stats.triangle_refs; errors as kdrt_tree_node(). */
-KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference, uint32_t *out_triangle);
+KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference,
+                                         uint32_t *out_triangle);
 KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree);
 
 /* Nearest hit in the ray's range: returns 1 and fills *hit, or returns 0 with
-   hit->triangle = KDRT_INVALID_ID (the other fields are then unspecified). NULL arguments give 0. */
+   hit->triangle = KDRT_INVALID_ID (the other fields are then unspecified). NULL arguments
+   give 0. */
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit);
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
@@ -465,8 +469,8 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
    Method for Avoiding Self-Intersection", Ray Tracing Gems 2019): 256 ulps of each coordinate, or
    2^-16 near the origin. A ray from the result in direction dir cannot hit the surface it starts
    on, near the origin or far from it; no fixed epsilon involved. normal need not be unit length. */
-KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3], const float dir[3],
-                                     float out[3]);
+KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3],
+                                     const float dir[3], float out[3]);
 /* A secondary ray leaving a hit in direction dir (reflection, refraction, shadow or bounce):
    origin = the hit's surface point offset by kdrt_offset_ray_origin(), tmin = 0,
    tmax = infinity. Returns 0 (and a ray that misses everything) when hit is not a hit of tree.
@@ -521,7 +525,7 @@ typedef struct kdrt_media_stack {
 
 /* What happens where a ray meets a surface of an object, from kdrt_media_at_surface(). */
 typedef struct kdrt_media_crossing {
-    int entering;          /* 1: the object is not in the stack and the ray enters it; 0: it leaves */
+    int entering;          /* 1: the object is not in the stack, the ray enters it; 0: it leaves */
     int real;              /* 0: a false surface, which changes no medium: ignore it (see OPTICS) */
     float eta_incident;    /* index of the current medium */
     float eta_transmitted; /* index beyond the surface; eta_incident when the surface is false */
@@ -538,15 +542,16 @@ KDRT_API uint32_t kdrt_media_current_object(const kdrt_media_stack *stack);
 KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object);
 /* Pushes object. KDRT_ERROR_MEDIA_STACK_FULL, KDRT_ERROR_INVALID_IOR or
    KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. An object entered twice is held twice. */
-KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority);
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior,
+                                      int priority);
 /* Removes object's latest entry wherever it is (media may overlap); the others keep their order.
    KDRT_ERROR_NOT_IN_MEDIUM or KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. */
 KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object);
 /* Classifies a surface of object hit by a ray with this stack. ior and priority are the
    object's, used when the ray enters it (when it leaves, the stack's entry counts). Changes
    nothing. A NULL stack is an empty one with outside index 1. */
-KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
-                                                   int priority);
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object,
+                                                   float ior, int priority);
 
 #ifdef __cplusplus
 }
@@ -635,10 +640,14 @@ static inline kdrt__node kdrt__node_inner(uint32_t axis, float split, uint32_t a
     return n;
 }
 
-static inline uint32_t kdrt__node_axis(const kdrt__node *n) { return n->bits & 3u; } /* or KDRT__LEAF */
-static inline int kdrt__node_is_leaf(const kdrt__node *n) { return kdrt__node_axis(n) == KDRT__LEAF; }
-static inline uint32_t kdrt__node_above(const kdrt__node *n) { return n->bits >> 2; } /* inner node */
-static inline uint32_t kdrt__node_count(const kdrt__node *n) { return n->bits >> 2; } /* leaf */
+/* The split axis, 0..2, or KDRT__LEAF; an inner node's above child; a leaf's triangle count. */
+static inline uint32_t kdrt__node_axis(const kdrt__node *n) { return n->bits & 3u; }
+static inline int kdrt__node_is_leaf(const kdrt__node *n)
+{
+    return kdrt__node_axis(n) == KDRT__LEAF;
+}
+static inline uint32_t kdrt__node_above(const kdrt__node *n) { return n->bits >> 2; }
+static inline uint32_t kdrt__node_count(const kdrt__node *n) { return n->bits >> 2; }
 
 /* A triangle as the intersection tests read it (see kdrt__pack_triangles). */
 typedef struct kdrt__triangle {
@@ -656,7 +665,7 @@ struct kdrt_tree {
     kdrt__node *nodes;
     uint32_t *refs;            /* indices into triangles, leaf by leaf */
     kdrt__triangle *triangles; /* in the order the leaves, depth first, first refer to them */
-    float *vertices;           /* the triangles' corners, copied, in the order they first use them */
+    float *vertices;           /* the triangles' corners, copied, in the order first used */
     kdrt_tree_stats stats;
 };
 
@@ -770,7 +779,8 @@ static kdrt_result kdrt__check_triangle(const kdrt_triangles *m, uint32_t tri, f
     uint32_t idx[3];
     int k, a;
     kdrt__triangle_indices(m, tri, idx);
-    if (!m->indices && (uint64_t)tri * 3u + 2u >= m->vertex_count) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
+    if (!m->indices && (uint64_t)tri * 3u + 2u >= m->vertex_count)
+        return KDRT_ERROR_INDEX_OUT_OF_RANGE;
     for (k = 0; k < 3; ++k)
         if (idx[k] >= m->vertex_count) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
     for (k = 0; k < 3; ++k) {
@@ -799,9 +809,11 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
     switch (result) {
     case KDRT_SUCCESS: return "success";
     case KDRT_ERROR_NULL_ARGUMENT: return "a required pointer is NULL";
-    case KDRT_ERROR_INVALID_STRIDE: return "position stride is neither 0 (packed) nor at least 12 bytes";
+    case KDRT_ERROR_INVALID_STRIDE:
+        return "position stride is neither 0 (packed) nor at least 12 bytes";
     case KDRT_ERROR_INVALID_OPTION: return "unknown builder or build flag";
-    case KDRT_ERROR_INDEX_OUT_OF_RANGE: return "a triangle refers to a vertex at or past vertex_count";
+    case KDRT_ERROR_INDEX_OUT_OF_RANGE:
+        return "a triangle refers to a vertex at or past vertex_count";
     case KDRT_ERROR_NON_FINITE_VERTEX: return "a triangle has a NaN or infinite coordinate";
     case KDRT_ERROR_SIZE_OVERFLOW: return "a count or byte size is too large to address";
     case KDRT_ERROR_OUT_OF_MEMORY: return "out of memory";
@@ -1018,8 +1030,8 @@ static void kdrt__shrink(const kdrt_allocator *a, void **array, uint32_t *capaci
     *capacity = count;
 }
 
-static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32_t *tris, uint32_t n,
-                                   uint32_t depth)
+static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32_t *tris,
+                                   uint32_t n, uint32_t depth)
 {
     kdrt_result r;
     if (n > KDRT_MAX_TRIANGLES || n > 0xFFFFFFFFu - b->ref_count) return KDRT_ERROR_SIZE_OVERFLOW;
@@ -1050,8 +1062,8 @@ static int kdrt__key_less(const void *pa, const void *pb)
 }
 
 /* Marks each triangle's side of the plane; returns the counts below and above. */
-static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, int axis, float split,
-                           uint32_t *below, uint32_t *above)
+static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, int axis,
+                           float split, uint32_t *below, uint32_t *above)
 {
     uint32_t i, nb = 0, na = 0;
     for (i = 0; i < n; ++i) {
@@ -1069,7 +1081,8 @@ static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, i
 }
 
 /* lists holds the node's n triangles three times, sorted by centroid x, y and z. */
-static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uint32_t n, uint32_t depth)
+static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uint32_t n,
+                                    uint32_t depth)
 {
     uint32_t node, nb = 0, na = 0, i, k, attempt, *children;
     int axis = 0;
@@ -1083,7 +1096,8 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     if (r != KDRT_SUCCESS) return r;
     node = b->node_count++;
 
-    if (n <= b->max_leaf_size || depth >= b->max_depth) return kdrt__emit_leaf(b, node, lists, n, depth);
+    if (n <= b->max_leaf_size || depth >= b->max_depth)
+        return kdrt__emit_leaf(b, node, lists, n, depth);
 
     for (attempt = 0; attempt < 3; ++attempt) {
         axis = (int)((depth + attempt) % 3u);
@@ -1098,7 +1112,8 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     children = (uint32_t *)kdrt__alloc(b->allocator, count * sizeof(uint32_t));
     if (!children) return KDRT_ERROR_OUT_OF_MEMORY;
     for (k = 0; k < 3; ++k) {
-        uint32_t *below = children + (size_t)k * nb, *above = children + 3u * (size_t)nb + (size_t)k * na;
+        uint32_t *below = children + (size_t)k * nb,
+                 *above = children + 3u * (size_t)nb + (size_t)k * na;
         const uint32_t *list = lists + (size_t)k * n;
         for (i = 0; i < n; ++i) {
             unsigned char side = b->side[list[i]];
@@ -1126,8 +1141,8 @@ typedef struct kdrt__ref {
 
 /* Box of the polygon pts[0..n), rounded outwards to float and kept within [blo, bhi]; 0 when
    that leaves nothing. */
-static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const float bhi[3], float lo[3],
-                             float hi[3])
+static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const float bhi[3],
+                             float lo[3], float hi[3])
 {
     int a, j;
     if (n == 0) return 0;
@@ -1151,7 +1166,8 @@ static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const 
    [child_lo[0], child_hi[1]] (Sutherland-Hodgman in double), cut by the plane into the part in
    each child's box; their boxes go to lo[c], hi[c]. Returns bit c set when child c gets some. */
 static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis, float pos,
-                                 float child_lo[2][3], float child_hi[2][3], float lo[2][3], float hi[2][3])
+                                 float child_lo[2][3], float child_hi[2][3], float lo[2][3],
+                                 float hi[2][3])
 {
     double poly[2][9][3], part[2][11][3];
     const float *blo = child_lo[0], *bhi = child_hi[1];
@@ -1198,7 +1214,8 @@ static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis
         }
     }
     for (i = 0; i < 2; ++i)
-        if (kdrt__polygon_box(part[i], count[i], child_lo[i], child_hi[i], lo[i], hi[i])) result |= 1u << i;
+        if (kdrt__polygon_box(part[i], count[i], child_lo[i], child_hi[i], lo[i], hi[i]))
+            result |= 1u << i;
     return result;
 }
 
@@ -1360,14 +1377,15 @@ typedef struct kdrt__axis_cost {
     float trav, isect, isect_empty; /* SAH constants; isect_empty with the empty bonus */
 } kdrt__axis_cost;
 
-static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const float lo[3], const float hi[3],
-                                        float inv_area)
+static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const float lo[3],
+                                        const float hi[3], float inv_area)
 {
     kdrt__axis_cost c;
     int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
     float d1 = hi[k1] - lo[k1], d2 = hi[k2] - lo[k2];
     c.k = k, c.lo = lo[k], c.hi = hi[k], c.cap = d1 * d2, c.side = d1 + d2, c.inv_area = inv_area;
-    c.trav = b->sah_trav, c.isect = b->sah_isect, c.isect_empty = b->sah_isect * (1.0f - b->sah_empty_bonus);
+    c.trav = b->sah_trav, c.isect = b->sah_isect,
+    c.isect_empty = b->sah_isect * (1.0f - b->sah_empty_bonus);
     return c;
 }
 
@@ -1382,11 +1400,13 @@ static void kdrt__consider(const kdrt__axis_cost *c, kdrt__plane *best, float po
     p_above = (c->cap + (c->hi - pos) * c->side) * c->inv_area;
     scale = (below + planars == 0 || above == 0) ? c->isect_empty : c->isect;
     cost = c->trav + scale * (p_below * (float)(below + planars) + p_above * (float)above);
-    if (cost < best->cost) best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
+    if (cost < best->cost)
+        best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
     if (planars == 0) return; /* the same plane again: no better */
     scale = (below == 0 || above + planars == 0) ? c->isect_empty : c->isect;
     cost = c->trav + scale * (p_below * (float)below + p_above * (float)(above + planars));
-    if (cost < best->cost) best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
+    if (cost < best->cost)
+        best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
 }
 
 /* A reference's events on axis k (one for a box flat on the axis, else two); returns how many. */
@@ -1404,8 +1424,8 @@ static uint32_t kdrt__push_events(const kdrt__ref *ref, uint32_t index, int k, u
 
 /* The sweep over one axis's sorted events of a node of n references: every distinct position is
    a candidate plane, costed with the counts on its sides. */
-static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, size_t count, uint32_t n,
-                        kdrt__plane *best)
+static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, size_t count,
+                        uint32_t n, kdrt__plane *best)
 {
     size_t i = 0;
     uint32_t below = 0, above = n;
@@ -1435,7 +1455,8 @@ typedef struct kdrt__events {
 
 /* Each axis's events of refs[0..n), sorted, in arrays from the arena (room for 2n + 1 each: the
    spare slot is kdrt__child_events'). */
-static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs, uint32_t n, kdrt__events *out)
+static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs, uint32_t n,
+                                       kdrt__events *out)
 {
     uint32_t r;
     int k;
@@ -1443,7 +1464,8 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
         out->axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
         if (!out->axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
         out->count[k] = 0;
-        for (r = 0; r < n; ++r) out->count[k] += kdrt__push_events(&refs[r], r, k, out->axis[k] + out->count[k]);
+        for (r = 0; r < n; ++r)
+            out->count[k] += kdrt__push_events(&refs[r], r, k, out->axis[k] + out->count[k]);
         kdrt__sort_keys(out->axis[k], out->count[k]);
     }
     return KDRT_SUCCESS;
@@ -1452,8 +1474,9 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
 /* Binned sweep for large nodes: each axis cut into KDRT_SAH_BINS equal bins, a reference counted
    in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
 
-static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n, const float lo[3],
-                               const float hi[3], float inv_area, kdrt__plane *best)
+static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
+                               const float lo[3], const float hi[3], float inv_area,
+                               kdrt__plane *best)
 {
     const uint32_t bins = KDRT_SAH_BINS;
     uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS], r, i;
@@ -1476,7 +1499,8 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
         cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
         for (i = 1; i < bins; ++i) {
             below += starts[k][i - 1], ended += ends[k][i - 1];
-            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below, 0, n - ended);
+            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below,
+                           0, n - ended);
         }
     }
 }
@@ -1485,7 +1509,8 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
 
 static float kdrt__half_area(const float lo[3], const float hi[3])
 {
-    return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) + (hi[2] - lo[2]) * (hi[0] - lo[0]);
+    return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) +
+           (hi[2] - lo[2]) * (hi[0] - lo[0]);
 }
 
 /* Which side of the plane a reference lies on: KDRT__SIDE_BELOW, _ABOVE, or both when the plane
@@ -1493,20 +1518,22 @@ static float kdrt__half_area(const float lo[3], const float hi[3])
 static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 {
     float l = r->lo[plane->axis], h = r->hi[plane->axis];
-    if (l == plane->pos && h == plane->pos) return plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
+    if (l == plane->pos && h == plane->pos)
+        return plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
     if (h <= plane->pos) return KDRT__SIDE_BELOW;
     if (l >= plane->pos) return KDRT__SIDE_ABOVE;
     return KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
 }
 
-/* The children's references, in arrays from alloc (the arena, or the allocator at the top of a
-   parallel build): a reference on one side is copied, one the plane cuts is split by
-   kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When sides is not
-   NULL it gets each reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
-static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
-                                    uint32_t n, const kdrt__plane *plane, float child_lo[2][3],
-                                    float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2],
-                                    unsigned char *sides, uint32_t *index[2])
+/* The children's references, in arrays from the arena (or, with no arena, at the top of a
+   parallel build, from the allocator): a reference on one side is copied, one the plane cuts is
+   split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When
+   sides is not NULL it gets each reference's side, and index[c] where it went in child c (or
+   KDRT_INVALID_ID). */
+static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
+                                    const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
+                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
+                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
 {
     uint32_t only[2] = {0, 0}, both = 0, r, c;
     for (r = 0; r < n; ++r) {
@@ -1516,8 +1543,9 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, 
     }
     for (c = 0; c < 2; ++c) {
         size_t room = (size_t)only[c] + both;
-        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, (room ? room : 1) * sizeof(kdrt__ref))
-                                       : kdrt__alloc(b->allocator, (room ? room : 1) * sizeof(kdrt__ref)));
+        child[c] =
+            (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, (room ? room : 1) * sizeof(kdrt__ref))
+                                : kdrt__alloc(b->allocator, (room ? room : 1) * sizeof(kdrt__ref)));
         if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
         count[c] = 0;
     }
@@ -1526,13 +1554,17 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, 
         float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
         if (side == (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE))
-            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo, child_hi, lo, hi);
+            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo,
+                                    child_hi, lo, hi);
         for (c = 0; c < 2; ++c) {
             kdrt__ref *out = &child[c][count[c]];
             if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
             if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) *out = refs[r];
-            else memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi), out->tri = refs[r].tri;
+            else {
+                memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
+                out->tri = refs[r].tri;
+            }
             ++count[c];
         }
     }
@@ -1543,13 +1575,15 @@ static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__
                               float child_lo[2][3], float child_hi[2][3])
 {
     int c;
-    for (c = 0; c < 2; ++c) memcpy(child_lo[c], lo, 3 * sizeof(float)), memcpy(child_hi[c], hi, 3 * sizeof(float));
+    for (c = 0; c < 2; ++c)
+        memcpy(child_lo[c], lo, 3 * sizeof(float)), memcpy(child_hi[c], hi, 3 * sizeof(float));
     child_hi[0][plane->axis] = plane->pos, child_lo[1][plane->axis] = plane->pos;
 }
 
 /* Every candidate on the three axes, from a node's sorted events. */
-static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n, const float lo[3],
-                             const float hi[3], float inv_area, kdrt__plane *best)
+static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n,
+                             const float lo[3], const float hi[3], float inv_area,
+                             kdrt__plane *best)
 {
     int k;
     for (k = 0; k < 3; ++k) {
@@ -1562,9 +1596,10 @@ static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events,
    plane cheaper than testing all n (cost-based termination). With events (the exact region) every
    candidate is tried; without, the bins choose, and where they find nothing worth a split every
    candidate is tried before the node is made a leaf. */
-static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
-                                      uint32_t n, const kdrt__events *events, const float lo[3],
-                                      const float hi[3], uint32_t depth, kdrt__plane *best)
+static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena,
+                                      const kdrt__ref *refs, uint32_t n, const kdrt__events *events,
+                                      const float lo[3], const float hi[3], uint32_t depth,
+                                      kdrt__plane *best)
 {
     float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
@@ -1576,7 +1611,8 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         if (!(best->cost < leaf_cost)) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
-            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS) return KDRT_ERROR_OUT_OF_MEMORY;
+            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
+                return KDRT_ERROR_OUT_OF_MEMORY;
             kdrt__sweep_axes(b, &all, n, lo, hi, 1.0f / area, best);
             kdrt__arena_release(arena, mark);
         }
@@ -1590,7 +1626,8 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
    the references the plane cut, made from their clipped boxes. */
 static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *events, uint32_t n,
                                       const unsigned char *sides, uint32_t *const index[2],
-                                      kdrt__ref *const child[2], const uint32_t count[2], kdrt__events out[2])
+                                      kdrt__ref *const child[2], const uint32_t count[2],
+                                      kdrt__events out[2])
 {
     const unsigned cut = KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
     uint64_t *fresh = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
@@ -1603,11 +1640,13 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
     cut_refs[1] = cut_refs[0] + n;
     for (r = 0; r < n; ++r)
         for (c = 0; c < 2; ++c)
-            if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID) cut_refs[c][cuts[c]++] = index[c][r];
+            if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID)
+                cut_refs[c][cuts[c]++] = index[c][r];
     for (k = 0; k < 3; ++k) {
         size_t i, kept[2] = {0, 0};
         for (c = 0; c < 2; ++c) {
-            out[c].axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
+            out[c].axis[k] =
+                (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
             if (!out[c].axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
         }
         /* Written on both sides and kept on one: no branch to mispredict (each array has a slot
@@ -1625,7 +1664,8 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
             uint64_t *o = out[c].axis[k];
             size_t made = 0, w;
             for (r = 0; r < cuts[c]; ++r)
-                made += kdrt__push_events(&child[c][cut_refs[c][r]], cut_refs[c][r], k, fresh + made);
+                made +=
+                    kdrt__push_events(&child[c][cut_refs[c][r]], cut_refs[c][r], k, fresh + made);
             kdrt__sort_keys(fresh, made);
             out[c].count[k] = kept[c] + made;
             for (i = kept[c], w = kept[c] + made; made > 0;) /* merge from the back, in place */
@@ -1638,9 +1678,9 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
 /* Builds the subtree of a node with box [lo, hi] into b, depth first (the below child right
    after its parent); events are the node's sorted events in the exact region, NULL above it.
    Scratch memory comes from the arena and is back there on return. */
-static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs, uint32_t n,
-                                  const kdrt__events *events, const float lo[3], const float hi[3],
-                                  uint32_t depth)
+static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
+                                  uint32_t n, const kdrt__events *events, const float lo[3],
+                                  const float hi[3], uint32_t depth)
 {
     kdrt__mark mark = kdrt__arena_mark(arena);
     kdrt__ref *child[2];
@@ -1680,14 +1720,15 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
         if (!sides || !index[0] || !index[1]) return KDRT_ERROR_OUT_OF_MEMORY;
     }
     r = kdrt__split_refs(b, arena, refs, n, &plane, child_lo, child_hi, child, count, sides, index);
-    if (events && r == KDRT_SUCCESS) r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
+    if (events && r == KDRT_SUCCESS)
+        r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
     if (r == KDRT_SUCCESS)
-        r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL, child_lo[0],
-                           child_hi[0], depth + 1);
+        r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL,
+                           child_lo[0], child_hi[0], depth + 1);
     if (r == KDRT_SUCCESS) {
         b->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, b->node_count);
-        r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL, child_lo[1],
-                           child_hi[1], depth + 1);
+        r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL,
+                           child_lo[1], child_hi[1], depth + 1);
     }
     kdrt__arena_release(arena, mark);
     return r;
@@ -1731,8 +1772,8 @@ static void kdrt__run_task(void *data, uint32_t index)
 }
 
 /* The top of the tree: splits large nodes and hands the rest to tasks; takes ownership of refs. */
-static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__ref *refs, uint32_t n,
-                                 const float lo[3], const float hi[3], uint32_t depth)
+static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__ref *refs,
+                                 uint32_t n, const float lo[3], const float hi[3], uint32_t depth)
 {
     kdrt__ref *child[2] = {NULL, NULL};
     uint32_t node = top->node_count++, count[2];
@@ -1768,7 +1809,8 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
     }
     r = kdrt__sah_top(b, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1);
     top->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, top->node_count);
-    if (r == KDRT_SUCCESS) return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
+    if (r == KDRT_SUCCESS)
+        return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
     kdrt__free(b->allocator, child[1]);
     return r;
 }
@@ -1783,11 +1825,13 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
         const kdrt__builder *t = &top->tasks[n->u.first_ref].out;
         for (k = 0; k < t->node_count; ++k) {
             const kdrt__node *c = &t->nodes[k];
-            b->nodes[node + k] = kdrt__node_is_leaf(c)
-                                     ? kdrt__node_leaf(c->u.first_ref + b->ref_count, kdrt__node_count(c))
-                                     : kdrt__node_inner(kdrt__node_axis(c), c->u.split, kdrt__node_above(c) + node);
+            b->nodes[node + k] =
+                kdrt__node_is_leaf(c)
+                    ? kdrt__node_leaf(c->u.first_ref + b->ref_count, kdrt__node_count(c))
+                    : kdrt__node_inner(kdrt__node_axis(c), c->u.split, kdrt__node_above(c) + node);
         }
-        if (t->ref_count) memcpy(b->refs + b->ref_count, t->refs, (size_t)t->ref_count * sizeof(uint32_t));
+        if (t->ref_count)
+            memcpy(b->refs + b->ref_count, t->refs, (size_t)t->ref_count * sizeof(uint32_t));
         b->node_count += t->node_count, b->ref_count += t->ref_count;
         b->leaves += t->leaves;
         if (t->depth_reached > b->depth_reached) b->depth_reached = t->depth_reached;
@@ -1801,8 +1845,9 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
 
 /* The SAH build: the top, the tasks (on the caller's scheduler, or one after the other), then
    the join. Takes ownership of refs. */
-static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *scheduler, kdrt__ref *refs,
-                                   uint32_t n, const float lo[3], const float hi[3])
+static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *scheduler,
+                                   kdrt__ref *refs, uint32_t n, const float lo[3],
+                                   const float hi[3])
 {
     kdrt__top *top = (kdrt__top *)kdrt__alloc(b->allocator, sizeof *top);
     uint64_t nodes = 0, total_refs = 0;
@@ -1820,17 +1865,23 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
                 top->largest_first[j] = top->largest_first[j - 1];
             top->largest_first[j] = i;
         }
-        if (scheduler && scheduler->run) scheduler->run(scheduler->user, kdrt__run_task, top, top->task_count);
+        if (scheduler && scheduler->run)
+            scheduler->run(scheduler->user, kdrt__run_task, top, top->task_count);
         else for (i = 0; i < top->task_count; ++i) kdrt__run_task(top, i);
         for (i = 0; i < top->task_count && r == KDRT_SUCCESS; ++i) r = top->tasks[i].result;
     }
     if (r == KDRT_SUCCESS) {
         nodes = top->node_count - top->task_count;
-        for (i = 0; i < top->task_count; ++i) nodes += top->tasks[i].out.node_count, total_refs += top->tasks[i].out.ref_count;
+        for (i = 0; i < top->task_count; ++i)
+            nodes += top->tasks[i].out.node_count, total_refs += top->tasks[i].out.ref_count;
         if (nodes > KDRT_MAX_TRIANGLES || total_refs > 0xFFFFFFFFu) r = KDRT_ERROR_SIZE_OVERFLOW;
     }
-    if (r == KDRT_SUCCESS) r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, (uint32_t)nodes, sizeof(kdrt__node));
-    if (r == KDRT_SUCCESS) r = kdrt__reserve(b->allocator, (void **)&b->refs, &b->ref_capacity, (uint32_t)total_refs + 1, sizeof(uint32_t));
+    if (r == KDRT_SUCCESS)
+        r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, (uint32_t)nodes,
+                          sizeof(kdrt__node));
+    if (r == KDRT_SUCCESS)
+        r = kdrt__reserve(b->allocator, (void **)&b->refs, &b->ref_capacity,
+                          (uint32_t)total_refs + 1, sizeof(uint32_t));
     if (r == KDRT_SUCCESS) kdrt__join(b, top, 0);
     for (i = 0; i < top->task_count; ++i) {
         kdrt__free(b->allocator, top->tasks[i].refs); /* set only if the task never ran */
@@ -1865,7 +1916,8 @@ static uint32_t kdrt__hash_position(const float p[3])
    floats, which would take 40 bytes instead of 16 and share nothing.) */
 static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_triangles *m,
                                         const kdrt__node *nodes, uint32_t *refs, uint32_t ref_count,
-                                        kdrt_tree *tree, uint32_t *out_triangles, uint32_t *out_vertices)
+                                        kdrt_tree *tree, uint32_t *out_triangles,
+                                        uint32_t *out_vertices)
 {
     uint32_t *slot, *table, stack[KDRT_MAX_DEPTH], sp = 0, node = 0, count = 0, unique = 0, i;
     size_t corners, size, h;
@@ -1896,7 +1948,8 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
         node = stack[--sp];
     }
     corners = 3 * (size_t)count;
-    if (corners > (size_t)-1 / 28u) { /* the records take 16 / 3 bytes a corner, the table below 28 */
+    /* The records take 16 / 3 bytes a corner, the table below 28. */
+    if (corners > (size_t)-1 / 28u) {
         kdrt__free(a, slot);
         return KDRT_ERROR_SIZE_OVERFLOW;
     }
@@ -1927,7 +1980,8 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
             uint32_t *corner = &tree->triangles[i].v[k];
             float p[3];
             kdrt__load_vertex(m, *corner, p);
-            for (h = kdrt__hash_position(p) & (size - 1); table[h] != KDRT_INVALID_ID; h = (h + 1) & (size - 1))
+            for (h = kdrt__hash_position(p) & (size - 1); table[h] != KDRT_INVALID_ID;
+                 h = (h + 1) & (size - 1))
                 if (memcmp(seen + 3 * (size_t)table[h], p, sizeof p) == 0) break;
             if (table[h] == KDRT_INVALID_ID) {
                 memcpy(seen + 3 * (size_t)unique, p, sizeof p);
@@ -1987,7 +2041,8 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
             continue;
         }
         cost += share * traversal_cost;
-        KDRT_ASSERT(sp < KDRT_MAX_DEPTH && at.lo[axis] <= node->u.split && node->u.split <= at.hi[axis]);
+        KDRT_ASSERT(sp < KDRT_MAX_DEPTH && at.lo[axis] <= node->u.split &&
+                    node->u.split <= at.hi[axis]);
         stack[sp] = at; /* the above child, for later */
         stack[sp].node = kdrt__node_above(node);
         stack[sp++].lo[axis] = node->u.split;
@@ -2010,26 +2065,31 @@ static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
         !(opt->sah_empty_bonus >= 0.0f && opt->sah_empty_bonus < 1.0f) ||
         !kdrt__finite(opt->sah_traversal_cost) || !kdrt__finite(opt->sah_intersection_cost))
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt->intersector != KDRT_INTERSECTOR_DEFAULT && opt->intersector != KDRT_INTERSECTOR_WATERTIGHT &&
+    if (opt->intersector != KDRT_INTERSECTOR_DEFAULT &&
+        opt->intersector != KDRT_INTERSECTOR_WATERTIGHT &&
         opt->intersector != KDRT_INTERSECTOR_FAST)
         return KDRT_ERROR_INVALID_OPTION;
     if (opt->flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
-    if ((opt->allocator.alloc == NULL) != (opt->allocator.free == NULL)) return KDRT_ERROR_NULL_ARGUMENT;
+    if ((opt->allocator.alloc == NULL) != (opt->allocator.free == NULL))
+        return KDRT_ERROR_NULL_ARGUMENT;
     return KDRT_SUCCESS;
 }
 
 /* The builder's settings from checked options, a zero option replaced by its default; the
    builder keeps pointers to opt and m, and its arrays start empty. */
-static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt, const kdrt_triangles *m)
+static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
+                               const kdrt_triangles *m)
 {
     memset(b, 0, sizeof *b);
     b->allocator = &opt->allocator;
     b->max_leaf_size = opt->max_leaf_size;
     b->mesh = m;
-    b->sah_trav = opt->sah_traversal_cost > 0.0f ? opt->sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
+    b->sah_trav =
+        opt->sah_traversal_cost > 0.0f ? opt->sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
     b->sah_isect = opt->sah_intersection_cost > 0.0f ? opt->sah_intersection_cost
                                                       : KDRT_DEFAULT_SAH_INTERSECTION_COST;
-    b->sah_empty_bonus = opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
+    b->sah_empty_bonus =
+        opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
     b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangle_count);
     if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
 }
@@ -2051,9 +2111,9 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_trian
    KDRT_BUILD_SKIP_INVALID_TRIANGLES is skipped, and a zero-area one is left out. The others get
    their box and centroid in b (by the caller's index), grow *bounds and are listed, in order, in
    (*valid)[0 .. *n). All of it is one allocation, *scratch, for the caller to free. */
-static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangles *m, uint32_t flags,
-                                           kdrt_aabb *bounds, float **scratch, uint32_t **valid,
-                                           uint32_t *n, kdrt_build_report *report)
+static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangles *m,
+                                           uint32_t flags, kdrt_aabb *bounds, float **scratch,
+                                           uint32_t **valid, uint32_t *n, kdrt_build_report *report)
 {
     const size_t count = m->triangle_count;
     uint32_t tri, skipped = 0, degenerate = 0;
@@ -2065,7 +2125,8 @@ static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangle
     *n = 0;
     /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles, then
        the builder's side marks. */
-    if (!kdrt__mul_size(count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes)) return KDRT_ERROR_SIZE_OVERFLOW;
+    if (!kdrt__mul_size(count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes))
+        return KDRT_ERROR_SIZE_OVERFLOW;
     *scratch = (float *)kdrt__alloc(b->allocator, bytes);
     if (!*scratch) return KDRT_ERROR_OUT_OF_MEMORY;
     *valid = (uint32_t *)(*scratch + 9 * count);
@@ -2078,7 +2139,8 @@ static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangle
         float *lo = *scratch + 3 * (size_t)tri, *hi = lo + 3 * count, *c = hi + 3 * count;
         r = kdrt__check_triangle(m, tri, p);
         if (r != KDRT_SUCCESS) {
-            if (report && report->invalid_triangle == KDRT_INVALID_ID) report->invalid_triangle = tri;
+            if (report && report->invalid_triangle == KDRT_INVALID_ID)
+                report->invalid_triangle = tri;
             if (!(flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) return r;
             ++skipped;
             continue;
@@ -2110,7 +2172,8 @@ static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangle
    tested in order. */
 static kdrt_result kdrt__build_no_tree(kdrt__builder *b, const uint32_t *valid, uint32_t n)
 {
-    kdrt_result r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, 1, sizeof(kdrt__node));
+    kdrt_result r =
+        kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, 1, sizeof(kdrt__node));
     if (r != KDRT_SUCCESS) return r;
     b->node_count = 1;
     return kdrt__emit_leaf(b, 0, valid, n, 0);
@@ -2130,7 +2193,8 @@ static kdrt_result kdrt__build_median(kdrt__builder *b, const uint32_t *valid, u
         return KDRT_ERROR_OUT_OF_MEMORY;
     }
     for (a = 0; a < 3; ++a) {
-        for (i = 0; i < n; ++i) keys[i].key = b->centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
+        for (i = 0; i < n; ++i)
+            keys[i].key = b->centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
         qsort(keys, n, sizeof *keys, kdrt__key_less);
         for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
     }
@@ -2141,8 +2205,8 @@ static kdrt_result kdrt__build_median(kdrt__builder *b, const uint32_t *valid, u
 }
 
 /* The SAH builder, from a reference per usable triangle: its box. */
-static kdrt_result kdrt__build_sah(kdrt__builder *b, const kdrt_scheduler *scheduler, const uint32_t *valid,
-                                   uint32_t n, const kdrt_aabb *bounds)
+static kdrt_result kdrt__build_sah(kdrt__builder *b, const kdrt_scheduler *scheduler,
+                                   const uint32_t *valid, uint32_t n, const kdrt_aabb *bounds)
 {
     kdrt__ref *refs = (kdrt__ref *)kdrt__alloc(b->allocator, (size_t)n * sizeof(kdrt__ref));
     uint32_t i;
@@ -2156,8 +2220,8 @@ static kdrt_result kdrt__build_sah(kdrt__builder *b, const kdrt_scheduler *sched
 }
 
 /* Dispatch: the nodes and leaf references into b, by the builder the options name. */
-static kdrt_result kdrt__build_nodes(kdrt__builder *b, const kdrt_build_options *opt, const uint32_t *valid,
-                                     uint32_t n, const kdrt_aabb *bounds)
+static kdrt_result kdrt__build_nodes(kdrt__builder *b, const kdrt_build_options *opt,
+                                     const uint32_t *valid, uint32_t n, const kdrt_aabb *bounds)
 {
     if (opt->max_leaf_size == 0 || n == 0) return kdrt__build_no_tree(b, valid, n);
     if (opt->builder == KDRT_BUILDER_SAH || opt->builder == KDRT_BUILDER_DEFAULT)
@@ -2166,10 +2230,11 @@ static kdrt_result kdrt__build_nodes(kdrt__builder *b, const kdrt_build_options 
 }
 
 /* Stats: the builder's arrays, trimmed, go to the tree, and its statistics are filled in. */
-static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triangles, uint32_t records,
-                              uint32_t vertices)
+static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triangles,
+                              uint32_t records, uint32_t vertices)
 {
-    kdrt__shrink(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count, sizeof(kdrt__node));
+    kdrt__shrink(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count,
+                 sizeof(kdrt__node));
     kdrt__shrink(b->allocator, (void **)&b->refs, &b->ref_capacity, b->ref_count, sizeof(uint32_t));
     tree->nodes = b->nodes;
     tree->refs = b->refs;
@@ -2179,7 +2244,8 @@ static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triang
     tree->stats.max_depth = b->depth_reached;
     tree->stats.triangle_refs = b->ref_count;
     tree->stats.bytes = sizeof *tree + (size_t)b->node_capacity * sizeof(kdrt__node) +
-                        (size_t)b->ref_capacity * sizeof(uint32_t) + (size_t)records * sizeof(kdrt__triangle) +
+                        (size_t)b->ref_capacity * sizeof(uint32_t) +
+                        (size_t)records * sizeof(kdrt__triangle) +
                         (size_t)vertices * 3 * sizeof(float);
     tree->stats.sah_cost = kdrt__sah_cost(tree, b->sah_trav, b->sah_isect);
 }
@@ -2211,7 +2277,8 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     r = kdrt__prepare_triangles(&b, &m, opt.flags, &tree->bounds, &scratch, &valid, &n, report);
     if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, &opt, valid, n, &tree->bounds);
     if (r == KDRT_SUCCESS)
-        r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records, &vertices);
+        r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records,
+                                 &vertices);
     if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n, records, vertices);
     kdrt__free(&opt.allocator, scratch);
     if (r != KDRT_SUCCESS) {
@@ -2292,7 +2359,8 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
     return KDRT_SUCCESS;
 }
 
-KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference, uint32_t *out_triangle)
+KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference,
+                                         uint32_t *out_triangle)
 {
     if (!tree || !out_triangle) return KDRT_ERROR_NULL_ARGUMENT;
     if ((uint64_t)reference >= tree->stats.triangle_refs) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
@@ -2309,7 +2377,8 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
 
 /* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
    that the answer does not depend on the order of the tests. */
-static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v, const kdrt__ray_setup *s)
+static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
+                        const kdrt__ray_setup *s)
 {
     if (!(t >= s->tmin && t <= best->t)) return 0;
     if (t == best->t && tri > best->triangle) return 0;
@@ -2354,14 +2423,15 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
 
 /* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an
    edge are computed differently, so a ray through the edge can miss both. */
-static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri, const kdrt__ray_setup *s,
-                                kdrt_hit *best)
+static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri,
+                                const kdrt__ray_setup *s, kdrt_hit *best)
 {
     const float *p[3];
     float e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
     int a;
     for (a = 0; a < 3; ++a) p[a] = vertices + 3 * (size_t)tri->v[a];
-    for (a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
+    for (a = 0; a < 3; ++a)
+        e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
     kdrt__cross_float(s->dir, e2, pv);
     det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
     if (det == 0.0f) return 0; /* parallel to the plane */
@@ -2471,7 +2541,8 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
     }
 }
 
-static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit, kdrt_traversal_stats *stats)
+static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
+                           kdrt_traversal_stats *stats)
 {
     if (!hit) return 0;
     if (!tree || !ray) {
@@ -2526,8 +2597,8 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
     return 1;
 }
 
-KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3], const float dir[3],
-                                     float out[3])
+KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3],
+                                     const float dir[3], float out[3])
 {
     /* Waechter & Binder's constants: below 1/32 a fixed 2^-16 step, above it 256 ulps. */
     const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
@@ -2589,17 +2660,24 @@ static int kdrt__load_direction(const float v[3], double d[3])
            (v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f);
 }
 
-static double kdrt__dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double kdrt__dot(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 
 /* cos^2 of the transmitted angle, 1 - eta^2 (1 - cos_i^2), for the Fresnel functions' float
    cosine; negative on total internal reflection. A float eta and a float cosine square exactly
    in double, and 1 - eta^2 is exact for 1 <= eta < 2^23 (below 1 there is no total internal
    reflection to decide), so with one fma the sign is exact. */
-static double kdrt__cos2_t(double eta, double cos_i) { return fma(eta * eta, cos_i * cos_i, 1.0 - eta * eta); }
+static double kdrt__cos2_t(double eta, double cos_i)
+{
+    return fma(eta * eta, cos_i * cos_i, 1.0 - eta * eta);
+}
 
 /* The unit mirror direction of i about the plane with normal n, from d = i.n, li = |i|,
    nn = |n|^2. The double intermediates cannot overflow, and the float result is a unit vector. */
-static void kdrt__mirror(const double i[3], const double n[3], double d, double li, double nn, float out[3])
+static void kdrt__mirror(const double i[3], const double n[3], double d, double li, double nn,
+                         float out[3])
 {
     double s = 2.0 * d / nn;
     int a;
@@ -2623,7 +2701,8 @@ KDRT_API int kdrt_refract(const float incident[3], const float normal[3], float 
     double i[3], n[3], w[3], t[3], d, ii, nn, li, k, e = eta;
     int a;
     if (!incident || !normal || !out) return -1;
-    if (!kdrt__load_direction(incident, i) || !kdrt__load_direction(normal, n) || !kdrt__finite_positive(eta)) {
+    if (!kdrt__load_direction(incident, i) || !kdrt__load_direction(normal, n) ||
+        !kdrt__finite_positive(eta)) {
         for (a = 0; a < 3; ++a) out[a] = incident[a];
         return -1;
     }
@@ -2716,7 +2795,9 @@ static uint32_t kdrt__media_current(const kdrt_media_stack *s, uint32_t skip)
 {
     uint32_t i, best = KDRT_INVALID_ID, n = kdrt__media_count(s);
     for (i = 0; i < n; ++i)
-        if (i != skip && (best == KDRT_INVALID_ID || s->media[i].priority >= s->media[best].priority)) best = i;
+        if (i != skip &&
+            (best == KDRT_INVALID_ID || s->media[i].priority >= s->media[best].priority))
+            best = i;
     return best;
 }
 
@@ -2758,7 +2839,8 @@ KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object)
     return stack && kdrt__media_find(stack, object) != KDRT_INVALID_ID;
 }
 
-KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority)
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior,
+                                      int priority)
 {
     kdrt_medium *m;
     if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
@@ -2780,8 +2862,8 @@ KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object)
     return KDRT_SUCCESS;
 }
 
-KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
-                                                   int priority)
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object,
+                                                   float ior, int priority)
 {
     kdrt_media_stack empty;
     kdrt_media_crossing x;
@@ -2798,7 +2880,8 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
     if (!x.real)
         x.eta_transmitted = x.eta_incident;
     else
-        x.eta_transmitted = x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
+        x.eta_transmitted =
+            x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
     return x;
 }
 
