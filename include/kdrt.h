@@ -1,4 +1,5 @@
-/* kdrt.h - v0.1.0 - kd-tree ray tracing over your own triangle buffers. Public domain-like (MIT-0).
+/* kdrt.h - v0.1.0 - kd-tree ray tracing over your own triangle buffers.
+   Public domain-like (MIT-0, see LICENSE at the end).
 
    USAGE
      In exactly one C or C++ file, before including this header:
@@ -29,13 +30,33 @@
 
          kdrt_tree_free(tree);
 
-   CONFIGURATION (define before the implementation)
-     KDRT_STATIC              all functions static
-     KDRT_ASSERT(x)           internal invariant checks; default: assert() from <assert.h>
-     KDRT_MALLOC(size, user)  default allocator when options.allocator is all zero;
-     KDRT_FREE(ptr, user)     define both or neither (default: malloc and free)
-     KDRT_TRAVERSAL_STATS     also compile kdrt_intersect_counted(), which counts a query's work
-                              (nodes, leaves, triangle tests); other queries are unchanged
+   CONFIGURATION
+     Every macro a user may define; all are optional. Names beginning KDRT__ are internal.
+     In the one file with the implementation, before including the header:
+       KDRT_IMPLEMENTATION       compile the implementation into this file
+       KDRT_STATIC               every function static (the implementation is then private to it)
+       KDRT_ASSERT(x)            internal invariant checks; default: assert() from <assert.h>
+       KDRT_MALLOC(size, user)   default allocator when options.allocator is all zero;
+       KDRT_FREE(ptr, user)      define both or neither (default: malloc and free)
+       KDRT_TRAVERSAL_STATS      also compile kdrt_intersect_counted(), which counts a query's
+                                 work (nodes, leaves, triangle tests); the other queries are
+                                 unchanged. Define it too where kdrt_intersect_counted() is called.
+       KDRT_SAH_BINS             bins per axis of the SAH builder's binned sweep: 2 to 1024,
+                                 default 256
+       KDRT_SAH_EXACT_MAX        SAH nodes of at most this many triangle references are split
+                                 by the exact sweep, larger ones by the binned one: 0 to
+                                 4294967295, default 128 (the top levels a parallel build
+                                 splits before its tasks are binned whatever the value)
+     KDRT_SAH_BINS and KDRT_SAH_EXACT_MAX exist to measure the choice: the defaults are the
+     measured best, and any value in range builds a valid tree, if not the same one. A value out
+     of range stops the compilation with an #error.
+     In every file, the same everywhere:
+       KDRT_API                  the functions' linkage (default: extern, or static under
+                                 KDRT_STATIC), e.g. a DLL export attribute
+       KDRT_MEDIA_STACK_CAPACITY media a kdrt_media_stack holds: at least 1, default 16; it sizes
+                                 the struct
+     Fixed, not for defining: KDRT_MAX_DEPTH (64, the deepest tree; options.max_depth is the
+     knob), KDRT_MAX_TRIANGLES and KDRT_INVALID_ID.
 
    OWNERSHIP
      The tree borrows the caller's buffers: kdrt_triangles.positions and .indices must stay alive
@@ -43,12 +64,17 @@
      leaves' triangle references and a copy of the triangles laid out for the intersection tests
      (THE TREE), which kdrt_intersect() and kdrt_occluded() read; kdrt_hit_surface() and
      kdrt_spawn_ray() read the caller's buffers. Moving or editing the vertices requires a new
-     build. The kdrt_triangles struct itself may be discarded after the build.
+     build. The kdrt_triangles struct itself may be discarded after the build. Everything the
+     tree owns comes from options.allocator (or KDRT_MALLOC) and goes back to it in
+     kdrt_tree_free(); a kdrt_media_stack is plain data the caller owns.
 
    THREAD SAFETY
-     No global state. kdrt_intersect() and kdrt_occluded() read a const tree, allocate nothing and
-     may be called from any number of threads at once. Builds of different trees may run at once,
-     and one SAH build may run its tasks on many threads through options.scheduler.
+     No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
+     may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(), the
+     inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
+     until none is running. Builds of different trees may run at once, and one SAH build may run
+     its tasks on many threads through options.scheduler, which then calls options.allocator
+     from those threads.
 
    ERRORS
      Functions that can fail return kdrt_result; kdrt_result_string() names each code. A failed
@@ -58,7 +84,7 @@
      KDRT_BUILD_SKIP_INVALID_TRIANGLES), counts beyond what the tree can address, and allocation
      failure. Zero triangles is valid: the tree is empty and every ray misses.
 
-   QUERIES AND NUMERICAL GUARANTEES
+   QUERIES AND GUARANTEES
      A ray is org + t * dir for t in [max(tmin, 0), tmax]; dir need not be normalised. A ray with a
      NaN or infinite origin or direction, an all-zero direction, a NaN tmin or tmax, or
      tmin > tmax misses everything.
@@ -67,8 +93,7 @@
      builder and leaf size returns exactly what max_leaf_size = 0 (test every triangle) returns
      for the same ray, with one exception: a triangle that a ray misses by less than the test's
      rounding error but still "hits" can lie beyond a split plane the ray never crosses, and the
-     tree, rightly, never tests it. (Seen in the tests only with KDRT_INTERSECTOR_FAST and the
-     SAH builder: an edge 1.8e-16 above an axis-parallel ray in the plane z = 0.)
+     tree, rightly, never tests it.
      Triangles are intersected in single precision with no epsilon; a ray meeting a triangle
      exactly on its edge counts as a hit. options.intersector picks the test for a tree:
        KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
@@ -76,23 +101,24 @@
          hits at least one of them, even exactly through an edge or a vertex: no ray slips
          through a closed mesh. This holds whatever the compiler fuses into FMAs (-march=native,
          -ffp-contract=fast, Clang on ARM): the edge functions are formed in double, where the
-         products of floats are exact (the tests build a copy with -mfma -ffp-contract=fast).
+         products of floats are exact.
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it.
      A ray lying exactly in a triangle's plane and meeting it may hit it or miss it: the
      watertight test shears with a rounded dir ratio, which turns the triangle seen edge-on into
      a sliver, and that freedom is what keeps a ray leaving a closed mesh through an edge of such
      a triangle from slipping through. The t of such a hit is a quotient of rounding errors: it
-     lies where the ray is within the triangle's bounding box, and no closer to the truth. Both tests agree with a double-precision reference on the triangle and, to a few
-     ulps, on t everywhere else. There is no double-precision query: the vertices are floats already, and the
-     tests and kdrt-bench --accuracy measure no mismatch left that doubles would remove. Zero-area triangles (coincident
-     or collinear corners: the edges' cross product, evaluated in double precision, is exactly
-     zero) are left out of the tree at build time and never hit; they are valid input, counted in
-     kdrt_build_report.degenerate_triangles. Hits are accepted wherever they are found and the traversal stops only once
-     every node nearer than the best hit has been visited, so a hit lying beyond the leaf it was
-     found in is never returned ahead of a nearer one. Split-plane distances are widened by a
-     bound on their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit
-     both sides, so rounding cannot make the traversal skip a node the ray passes through.
+     lies where the ray is within the triangle's bounding box, and no closer to the truth.
+     Both tests agree with a double-precision reference on the triangle and, to a few ulps, on t
+     everywhere else. There is no double-precision query: the vertices are floats already.
+     Zero-area triangles (coincident or collinear corners: the edges' cross product, evaluated
+     in double precision, is exactly zero) are left out of the tree at build time and never hit;
+     they are valid input, counted in kdrt_build_report.degenerate_triangles.
+     Hits are accepted wherever they are found and the traversal stops only once every node
+     nearer than the best hit has been visited, so a hit lying beyond the leaf it was found in
+     is never returned ahead of a nearer one. Split-plane distances are widened by a bound on
+     their rounding error (pbrt's gamma(3)), and rays lying exactly in a split plane visit both
+     sides, so rounding cannot make the traversal skip a node the ray passes through.
      Barycentrics: the hit point is (1 - u - v) * p0 + u * p1 + v * p2.
      Secondary rays: start them with kdrt_spawn_ray(), which offsets the hit point along the
      geometric normal by a distance relative to its magnitude, so a reflected, refracted or shadow
@@ -108,39 +134,37 @@
      filtered from their parent's in order, so a level costs O(n). Depth is bounded by
      options.max_depth (at most KDRT_MAX_DEPTH), which bounds the traversal's fixed stack.
      KDRT_BUILDER_SAH chooses each split by the surface area heuristic (Wald & Havran 2006). A
-     node with more than 128 triangles is binned: 256 equal bins per axis, the planes between
-     them costed from counts of the triangles' box faces, O(n). Below that every face of every
-     triangle's box on every axis is a candidate: the start, end and planar events are sorted
-     once where a subtree comes down to 128 triangles and kept in order from there (Wald &
-     Havran's O(n log n) build): a split renumbers the events of the triangles on one side, and
-     only the events of the triangles it cuts are made again and sorted.
+     node with more than KDRT_SAH_EXACT_MAX (128) triangle references is binned: KDRT_SAH_BINS
+     (256) equal bins per axis, the planes between them costed from counts of the triangles' box
+     faces, O(n); where no plane between bins beats a leaf, every candidate below is tried
+     before the node is made one. At or below KDRT_SAH_EXACT_MAX every face of every triangle's
+     box on every axis is a candidate: the start, end and planar events are sorted once where a
+     subtree comes down to that size and kept in order from there (Wald & Havran's O(n log n)
+     build): a split renumbers the events of the triangles on one side, and only the events of
+     the triangles it cuts are made again and sorted.
      A triangle cut by the plane is clipped to the node's box and that polygon split by the
      plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when
      it holds at most max_leaf_size triangles, at max_depth, or when no split is cheaper than
-     testing all its triangles (the costs are options). It builds slower than the median and traces several times faster:
-     it is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
+     testing all its triangles (the costs are options). It is the default (KDRT_BUILDER_DEFAULT
+     and kdrt_default_build_options()).
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
-     split on the calling thread; the subtrees below are independent tasks handed to
-     options.scheduler, then joined in depth-first order. The cut depends only on the input,
+     split on the calling thread; the subtrees below, at most 64, are independent tasks handed
+     to options.scheduler, then joined in depth-first order. The cut depends only on the input,
      so the tree is the same for any scheduler, thread count or task order, and without one.
-     max_leaf_size = 0 means no tree: every query tests every triangle (the baseline of the
-     benchmark), through the same API.
+     max_leaf_size = 0 means no tree: every query tests every triangle, through the same API.
      Memory, whatever the builder: 8 bytes a node (pbrt-v3's layout) and 4 a reference (a leaf
      refers to its triangles by a run of references; a triangle crossing leaves is referred to by
      each), then the triangle data the intersection tests read, copied at the end of the build so
      that a test does not chase the caller's index buffer to three scattered vertices: a 16-byte
      record per triangle (its corners' indices and the caller's triangle index) and the corners'
      positions, 12 bytes each, each distinct position once (compared bit for bit, so a soup shares
-     its corners as an indexed mesh does): about 6 bytes a triangle in a closed mesh, where a
-     vertex has six triangles around it. Records and positions lie in the order a depth-first walk
-     of the leaves first meets them, so a leaf's triangles and its neighbours' lie close together.
-     Skipped and zero-area triangles are not copied. kdrt_tree_stats.bytes counts it all: over
-     the benchmark's meshes of 1,000 triangles or more, SAH trees of leaf size 4 with the default
-     costs take 48 to 63 bytes a triangle, about 22 of them the copy, and max_leaf_size = 0 takes
-     26.
+     its corners as an indexed mesh does). Records and positions lie in the order a depth-first
+     walk of the leaves first meets them, so a leaf's triangles and its neighbours' lie close
+     together. Skipped and zero-area triangles are not copied. kdrt_tree_stats.bytes counts it
+     all.
      Inspection: kdrt_tree_node_count(), kdrt_tree_node() (a node's kind, split, children, box,
      depth and leaf references) and kdrt_tree_reference() (the caller's triangle a reference
-     names) walk a built tree without its internals; tools/kdrt-inspect is built on them.
+     names) walk a built tree without its internals.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -160,7 +184,7 @@
      (incident (1, 0, -0.75), normal (0, 0, 1), eta 1.25), and the decision can only be wrong when
      the exact k is within a few double-precision ulps of 0, far closer than a float input's own
      rounding. The refracted direction is within 2^-22 rad of Snell's law evaluated in
-     double at every angle, the ill-conditioned ones near the critical angle included (tested).
+     double at every angle, the ill-conditioned ones near the critical angle included.
      The medium stack is the original course ray tracer's, keyed by object: entering an object
      pushes its index of refraction, leaving it removes that object's entry wherever it is (so
      overlapping and nested media work), and outside_ior (the original's AIR_INDEX_MEDIUM) lies
@@ -219,7 +243,8 @@
 extern "C" {
 #endif
 
-/* The deepest tree a build makes; the traversal's stack holds this many entries. */
+/* The deepest tree a build makes; the traversal's stack holds this many entries. A fixed
+   constant, not a configuration macro: options.max_depth is the knob, up to this. */
 #define KDRT_MAX_DEPTH 64
 /* Most triangles a tree accepts (a leaf's count and a child's index are 30-bit fields). */
 #define KDRT_MAX_TRIANGLES 0x3FFFFFFFu
@@ -235,7 +260,7 @@ typedef enum kdrt_result {
     KDRT_ERROR_NON_FINITE_VERTEX,  /* a triangle has a NaN or infinite coordinate */
     KDRT_ERROR_SIZE_OVERFLOW,      /* a count or byte size beyond what can be addressed */
     KDRT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
-    KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY media entered */
+    KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY entered */
     KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
     KDRT_ERROR_INVALID_IOR         /* an index of refraction that is NaN, infinite, 0 or negative */
 } kdrt_result;
@@ -248,9 +273,9 @@ typedef struct kdrt_aabb {
 /* A borrowed view of the caller's triangles (see OWNERSHIP). */
 typedef struct kdrt_triangles {
     const float *positions;    /* x, y, z of vertex 0; vertex i starts i * stride bytes later */
-    size_t position_stride;    /* bytes from one vertex to the next: 0 means packed (12), else >= 12 */
+    size_t position_stride;    /* bytes from one vertex to the next: 0 is packed (12), else >= 12 */
     uint32_t vertex_count;     /* vertices readable at positions */
-    const uint32_t *indices;   /* 3 vertex indices per triangle, or NULL: triangle i is 3i, 3i+1, 3i+2 */
+    const uint32_t *indices;   /* 3 vertex indices a triangle; NULL: triangle i is 3i, 3i+1, 3i+2 */
     uint32_t triangle_count;
 } kdrt_triangles;
 
@@ -293,7 +318,7 @@ typedef enum kdrt_builder {
 typedef enum kdrt_intersector {
     KDRT_INTERSECTOR_DEFAULT = 0,    /* KDRT_INTERSECTOR_WATERTIGHT */
     KDRT_INTERSECTOR_WATERTIGHT = 1, /* Woop, Benthin & Wald 2013: no ray slips between triangles
-                                        that share an edge or a vertex (see NUMERICAL GUARANTEES) */
+                                        that share an edge or a vertex (QUERIES AND GUARANTEES) */
     KDRT_INTERSECTOR_FAST = 2        /* Moeller & Trumbore 1997: rays through shared edges and
                                         vertices may pass between the triangles */
 } kdrt_intersector;
@@ -326,11 +351,8 @@ typedef struct kdrt_build_options {
 } kdrt_build_options;
 
 #define KDRT_DEFAULT_MAX_LEAF_SIZE 4
-/* Picked by measurement (README, "Choosing the SAH costs": tools/tune_sah.py over 55 settings,
-   four meshes, primary and diffuse rays): K_T / K_I = 1.5 with empty bonus 0.1 traces within 2%
-   of the fastest setting, builds 16% faster and takes 20% less memory than Wald & Havran 2006's
-   15, 20 and 0.2 (Mitsuba alike). pbrt-v3's 1, 80 and 0.5 traces 18-28% slower here, for its
-   larger empty bonus: every bonus from 0.5 up does. */
+/* The SAH costs a zero option stands for, chosen by measurement: K_T / K_I = 1.5, with an
+   empty bonus of 0.1. */
 #define KDRT_DEFAULT_SAH_TRAVERSAL_COST 30.0f
 #define KDRT_DEFAULT_SAH_INTERSECTION_COST 20.0f
 #define KDRT_DEFAULT_SAH_EMPTY_BONUS 0.1f
@@ -394,30 +416,34 @@ typedef struct kdrt_node_info {
     int is_leaf;              /* 1 for a leaf, 0 for an inner node */
     int axis;                 /* inner node: split axis, 0 x, 1 y, 2 z; leaf: -1 */
     float split;              /* inner node: plane position on axis; leaf: 0 */
-    uint32_t below;           /* inner node: child on the low side (always index + 1); leaf: KDRT_INVALID_ID */
+    uint32_t below;           /* inner node: low side child (index + 1); leaf: KDRT_INVALID_ID */
     uint32_t above;           /* inner node: child on the high side; leaf: KDRT_INVALID_ID */
     uint32_t depth;           /* the root is depth 0 */
-    kdrt_aabb bounds;         /* kdrt_tree_bounds() cut by the ancestors' splits (as sah_cost uses) */
+    kdrt_aabb bounds;         /* kdrt_tree_bounds() cut by the ancestors' splits (as in sah_cost) */
     uint32_t triangle_count;  /* leaf: how many triangles it refers to; inner node: 0 */
     uint32_t first_reference; /* leaf: its references are first_reference .. + triangle_count - 1 */
 } kdrt_node_info;
 /* Nodes in the tree (kdrt_tree_stats.nodes); NULL gives 0. */
 KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree);
 /* Describes node index. KDRT_ERROR_NULL_ARGUMENT for a NULL tree or out_info,
-   KDRT_ERROR_INDEX_OUT_OF_RANGE for index >= kdrt_tree_node_count(); *out_info is then untouched. */
-KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_node_info *out_info);
+   KDRT_ERROR_INDEX_OUT_OF_RANGE for index >= kdrt_tree_node_count(); *out_info is then
+   untouched. */
+KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index,
+                                    kdrt_node_info *out_info);
 /* The caller's triangle index (as in kdrt_hit.triangle) that leaf reference number reference refers
    to, for reference < kdrt_tree_stats.triangle_refs; errors as kdrt_tree_node(). */
-KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference, uint32_t *out_triangle);
+KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference,
+                                         uint32_t *out_triangle);
 KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree);
 
 /* Nearest hit in the ray's range: returns 1 and fills *hit, or returns 0 with
-   hit->triangle = KDRT_INVALID_ID (the other fields are then unspecified). NULL arguments give 0. */
+   hit->triangle = KDRT_INVALID_ID (the other fields are then unspecified). NULL arguments
+   give 0. */
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit);
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
 
-/* The work one query did, for measuring (bench/kdrt-ray-costs). Counting is compiled in only
+/* The work one query did, for measuring. Counting is compiled in only
    where KDRT_TRAVERSAL_STATS is defined before the implementation; kdrt_intersect_counted()
    exists only there, and kdrt_intersect() stays free of it. */
 typedef struct kdrt_traversal_stats {
@@ -443,8 +469,8 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
    Method for Avoiding Self-Intersection", Ray Tracing Gems 2019): 256 ulps of each coordinate, or
    2^-16 near the origin. A ray from the result in direction dir cannot hit the surface it starts
    on, near the origin or far from it; no fixed epsilon involved. normal need not be unit length. */
-KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3], const float dir[3],
-                                     float out[3]);
+KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3],
+                                     const float dir[3], float out[3]);
 /* A secondary ray leaving a hit in direction dir (reflection, refraction, shadow or bounce):
    origin = the hit's surface point offset by kdrt_offset_ray_origin(), tmin = 0,
    tmax = infinity. Returns 0 (and a ray that misses everything) when hit is not a hit of tree.
@@ -452,7 +478,7 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
 KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
                             kdrt_ray *out);
 
-/* ---- Optics (see OPTICS): reflection, refraction and Fresnel reflectance ---- */
+/* ==== optics (see OPTICS): reflection, refraction, Fresnel reflectance, the medium stack ==== */
 
 /* The mirror direction of incident about the plane with this normal, as a unit vector. Neither
    vector needs unit length; the normal may face either way. A NaN or infinite component or an
@@ -473,12 +499,12 @@ KDRT_API float kdrt_fresnel_dielectric(float cos_i, float eta);
 KDRT_API void kdrt_fresnel_dielectric_sp(float cos_i, float eta, float *rs, float *rp);
 /* Schlick's approximation R0 + (1 - R0) (1 - cos)^5, R0 = ((eta - 1) / (eta + 1))^2, with cos the
    cosine on the less dense side (cos_t when eta > 1; 1 on total internal reflection). Cheaper,
-   and off by up to 0.036 for glass (eta 1.5 or 1/1.5, worst about 85 degrees from air, 42 from
-   glass) and 0.060 for water (1.333): measured by tests/test_optics.cpp. Same inputs and special
-   cases as kdrt_fresnel_dielectric(). */
+   and off by up to 0.036 for glass (eta 1.5 or 1/1.5) and 0.060 for water (1.333). Same inputs
+   and special cases as kdrt_fresnel_dielectric(). */
 KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta);
 
-/* The medium stack (see OPTICS). Define KDRT_MEDIA_STACK_CAPACITY the same in every file. */
+/* The medium stack (see OPTICS). KDRT_MEDIA_STACK_CAPACITY (at least 1) sizes the struct: define
+   it the same in every file. */
 #ifndef KDRT_MEDIA_STACK_CAPACITY
 #define KDRT_MEDIA_STACK_CAPACITY 16
 #endif
@@ -499,7 +525,7 @@ typedef struct kdrt_media_stack {
 
 /* What happens where a ray meets a surface of an object, from kdrt_media_at_surface(). */
 typedef struct kdrt_media_crossing {
-    int entering;          /* 1: the object is not in the stack and the ray enters it; 0: it leaves */
+    int entering;          /* 1: the object is not in the stack, the ray enters it; 0: it leaves */
     int real;              /* 0: a false surface, which changes no medium: ignore it (see OPTICS) */
     float eta_incident;    /* index of the current medium */
     float eta_transmitted; /* index beyond the surface; eta_incident when the surface is false */
@@ -516,15 +542,16 @@ KDRT_API uint32_t kdrt_media_current_object(const kdrt_media_stack *stack);
 KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object);
 /* Pushes object. KDRT_ERROR_MEDIA_STACK_FULL, KDRT_ERROR_INVALID_IOR or
    KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. An object entered twice is held twice. */
-KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority);
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior,
+                                      int priority);
 /* Removes object's latest entry wherever it is (media may overlap); the others keep their order.
    KDRT_ERROR_NOT_IN_MEDIUM or KDRT_ERROR_NULL_ARGUMENT leave the stack as it was. */
 KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object);
 /* Classifies a surface of object hit by a ray with this stack. ior and priority are the
    object's, used when the ray enters it (when it leaves, the stack's entry counts). Changes
    nothing. A NULL stack is an empty one with outside index 1. */
-KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
-                                                   int priority);
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object,
+                                                   float ior, int priority);
 
 #ifdef __cplusplus
 }
@@ -532,8 +559,12 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #endif /* KDRT_H */
 
 /* ============================================================================================ */
+/*                                        IMPLEMENTATION                                        */
+/* ============================================================================================ */
 #if defined(KDRT_IMPLEMENTATION) && !defined(KDRT__IMPLEMENTED)
 #define KDRT__IMPLEMENTED
+
+/* ==== configuration: libc, KDRT_ASSERT, KDRT_MALLOC / KDRT_FREE ==== */
 
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
@@ -552,12 +583,33 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #define KDRT_FREE(ptr, user) ((void)(user), free(ptr))
 #endif
 
+/* The SAH builder's two measured choices (see CONFIGURATION). The bins' counts live on the
+   stack, 24 bytes a bin. */
+#if defined(KDRT__SAH_BINS) || defined(KDRT__SAH_EXACT_MAX)
+#error "kdrt: KDRT__SAH_BINS and KDRT__SAH_EXACT_MAX are now KDRT_SAH_BINS and KDRT_SAH_EXACT_MAX"
+#endif
+#ifndef KDRT_SAH_BINS
+#define KDRT_SAH_BINS 256u
+#endif
+#if KDRT_SAH_BINS < 2 || KDRT_SAH_BINS > 1024
+#error "kdrt: KDRT_SAH_BINS must be 2 to 1024"
+#endif
+#ifndef KDRT_SAH_EXACT_MAX
+#define KDRT_SAH_EXACT_MAX 128u
+#endif
+#if KDRT_SAH_EXACT_MAX < 0 || KDRT_SAH_EXACT_MAX > 0xFFFFFFFF
+#error "kdrt: KDRT_SAH_EXACT_MAX must be 0 to 4294967295"
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* 8-byte node (pbrt-v3's layout). bits: low 2 = axis 0..2, or 3 for a leaf; high 30 = index of
-   the above child (the below child follows its parent), or a leaf's triangle count. */
+/* ==== the tree's layout: nodes, triangle records, the tree ==== */
+
+/* 8-byte node (pbrt-v3's layout). bits: low 2 = axis 0..2, or KDRT__LEAF; high 30 = index of
+   the above child (the below child follows its parent), or a leaf's triangle count. Only the
+   kdrt__node_* helpers below read or write bits. */
 typedef struct kdrt__node {
     union {
         float split;        /* inner node: plane position on its axis */
@@ -568,7 +620,34 @@ typedef struct kdrt__node {
 
 typedef char kdrt__node_is_8_bytes[sizeof(kdrt__node) == 8 ? 1 : -1];
 
-#define KDRT__LEAF 3u
+#define KDRT__LEAF 3u /* kdrt__node_axis() of a leaf */
+
+/* A leaf of count references from first_ref on (count < 2^30: KDRT_MAX_TRIANGLES). */
+static inline kdrt__node kdrt__node_leaf(uint32_t first_ref, uint32_t count)
+{
+    kdrt__node n;
+    n.u.first_ref = first_ref;
+    n.bits = (count << 2) | KDRT__LEAF;
+    return n;
+}
+
+/* An inner node split at split on axis (0..2); its above child is node above (< 2^30). */
+static inline kdrt__node kdrt__node_inner(uint32_t axis, float split, uint32_t above)
+{
+    kdrt__node n;
+    n.u.split = split;
+    n.bits = (above << 2) | axis;
+    return n;
+}
+
+/* The split axis, 0..2, or KDRT__LEAF; an inner node's above child; a leaf's triangle count. */
+static inline uint32_t kdrt__node_axis(const kdrt__node *n) { return n->bits & 3u; }
+static inline int kdrt__node_is_leaf(const kdrt__node *n)
+{
+    return kdrt__node_axis(n) == KDRT__LEAF;
+}
+static inline uint32_t kdrt__node_above(const kdrt__node *n) { return n->bits >> 2; }
+static inline uint32_t kdrt__node_count(const kdrt__node *n) { return n->bits >> 2; }
 
 /* A triangle as the intersection tests read it (see kdrt__pack_triangles). */
 typedef struct kdrt__triangle {
@@ -586,11 +665,11 @@ struct kdrt_tree {
     kdrt__node *nodes;
     uint32_t *refs;            /* indices into triangles, leaf by leaf */
     kdrt__triangle *triangles; /* in the order the leaves, depth first, first refer to them */
-    float *vertices;           /* the triangles' corners, copied, in the order they first use them */
+    float *vertices;           /* the triangles' corners, copied, in the order first used */
     kdrt_tree_stats stats;
 };
 
-/* ---- small helpers ---- */
+/* ==== small helpers: floats, cross products, allocation ==== */
 
 /* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
 static int kdrt__finite(float x) { return x - x == 0.0f; }
@@ -607,6 +686,20 @@ static float kdrt__next_up(float x)
     return x;
 }
 static float kdrt__next_down(float x) { return -kdrt__next_up(-x); }
+
+/* c = a x b, in the precision of the inputs; c must not be a or b. */
+static void kdrt__cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+static void kdrt__cross_float(const float a[3], const float b[3], float c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
 
 static void *kdrt__alloc(const kdrt_allocator *a, size_t size)
 {
@@ -628,6 +721,8 @@ static int kdrt__mul_size(size_t a, size_t b, size_t *out)
     *out = a * b;
     return 1;
 }
+
+/* ==== input: reading and checking the caller's triangles ==== */
 
 static size_t kdrt__stride(const kdrt_triangles *m)
 {
@@ -684,7 +779,8 @@ static kdrt_result kdrt__check_triangle(const kdrt_triangles *m, uint32_t tri, f
     uint32_t idx[3];
     int k, a;
     kdrt__triangle_indices(m, tri, idx);
-    if (!m->indices && (uint64_t)tri * 3u + 2u >= m->vertex_count) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
+    if (!m->indices && (uint64_t)tri * 3u + 2u >= m->vertex_count)
+        return KDRT_ERROR_INDEX_OUT_OF_RANGE;
     for (k = 0; k < 3; ++k)
         if (idx[k] >= m->vertex_count) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
     for (k = 0; k < 3; ++k) {
@@ -699,23 +795,25 @@ static kdrt_result kdrt__check_triangle(const kdrt_triangles *m, uint32_t tri, f
    float, so exact degeneracies (repeated corners, collinear grid points) come out exactly zero. */
 static int kdrt__zero_area(float p[3][3])
 {
-    double e1[3], e2[3];
+    double e1[3], e2[3], n[3];
     int a;
     for (a = 0; a < 3; ++a) e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
-    return e1[1] * e2[2] - e1[2] * e2[1] == 0.0 && e1[2] * e2[0] - e1[0] * e2[2] == 0.0 &&
-           e1[0] * e2[1] - e1[1] * e2[0] == 0.0;
+    kdrt__cross(e1, e2, n);
+    return n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0;
 }
 
-/* ---- results, boxes ---- */
+/* ==== results and boxes ==== */
 
 KDRT_API const char *kdrt_result_string(kdrt_result result)
 {
     switch (result) {
     case KDRT_SUCCESS: return "success";
     case KDRT_ERROR_NULL_ARGUMENT: return "a required pointer is NULL";
-    case KDRT_ERROR_INVALID_STRIDE: return "position stride is neither 0 (packed) nor at least 12 bytes";
+    case KDRT_ERROR_INVALID_STRIDE:
+        return "position stride is neither 0 (packed) nor at least 12 bytes";
     case KDRT_ERROR_INVALID_OPTION: return "unknown builder or build flag";
-    case KDRT_ERROR_INDEX_OUT_OF_RANGE: return "a triangle refers to a vertex at or past vertex_count";
+    case KDRT_ERROR_INDEX_OUT_OF_RANGE:
+        return "a triangle refers to a vertex at or past vertex_count";
     case KDRT_ERROR_NON_FINITE_VERTEX: return "a triangle has a NaN or infinite coordinate";
     case KDRT_ERROR_SIZE_OVERFLOW: return "a count or byte size is too large to address";
     case KDRT_ERROR_OUT_OF_MEMORY: return "out of memory";
@@ -786,6 +884,8 @@ KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aab
     }
     return KDRT_SUCCESS;
 }
+
+/* ==== rays: setup and the slab test ==== */
 
 /* pbrt's gamma(3) doubled: (split - o) * (1 / d) is three roundings away from the true distance,
    so the true value lies within t * (1 -+ KDRT__T_SLACK). */
@@ -868,7 +968,7 @@ KDRT_API int kdrt_aabb_intersect_ray(const kdrt_aabb *box, const kdrt_ray *ray, 
     return 1;
 }
 
-/* ---- build ---- */
+/* ==== builder state, growing arrays, leaves ==== */
 
 KDRT_API kdrt_build_options kdrt_default_build_options(void)
 {
@@ -930,8 +1030,8 @@ static void kdrt__shrink(const kdrt_allocator *a, void **array, uint32_t *capaci
     *capacity = count;
 }
 
-static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32_t *tris, uint32_t n,
-                                   uint32_t depth)
+static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32_t *tris,
+                                   uint32_t n, uint32_t depth)
 {
     kdrt_result r;
     if (n > KDRT_MAX_TRIANGLES || n > 0xFFFFFFFFu - b->ref_count) return KDRT_ERROR_SIZE_OVERFLOW;
@@ -939,17 +1039,31 @@ static kdrt_result kdrt__emit_leaf(kdrt__builder *b, uint32_t node, const uint32
                       sizeof(uint32_t));
     if (r != KDRT_SUCCESS) return r;
     if (n) memcpy(b->refs + b->ref_count, tris, (size_t)n * sizeof(uint32_t));
-    b->nodes[node].u.first_ref = b->ref_count;
-    b->nodes[node].bits = (n << 2) | KDRT__LEAF;
+    b->nodes[node] = kdrt__node_leaf(b->ref_count, n);
     b->ref_count += n;
     b->leaves += 1;
     if (depth > b->depth_reached) b->depth_reached = depth;
     return KDRT_SUCCESS;
 }
 
+/* ==== median builder ==== */
+
+/* A triangle's centroid on one axis, for the median builder's sort. */
+typedef struct kdrt__key {
+    float key;
+    uint32_t tri;
+} kdrt__key;
+
+static int kdrt__key_less(const void *pa, const void *pb)
+{
+    const kdrt__key *a = (const kdrt__key *)pa, *b = (const kdrt__key *)pb;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    return a->tri < b->tri ? -1 : (a->tri > b->tri); /* a total order: same tree on every libc */
+}
+
 /* Marks each triangle's side of the plane; returns the counts below and above. */
-static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, int axis, float split,
-                           uint32_t *below, uint32_t *above)
+static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, int axis,
+                           float split, uint32_t *below, uint32_t *above)
 {
     uint32_t i, nb = 0, na = 0;
     for (i = 0; i < n; ++i) {
@@ -967,7 +1081,8 @@ static void kdrt__classify(kdrt__builder *b, const uint32_t *tris, uint32_t n, i
 }
 
 /* lists holds the node's n triangles three times, sorted by centroid x, y and z. */
-static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uint32_t n, uint32_t depth)
+static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uint32_t n,
+                                    uint32_t depth)
 {
     uint32_t node, nb = 0, na = 0, i, k, attempt, *children;
     int axis = 0;
@@ -981,7 +1096,8 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     if (r != KDRT_SUCCESS) return r;
     node = b->node_count++;
 
-    if (n <= b->max_leaf_size || depth >= b->max_depth) return kdrt__emit_leaf(b, node, lists, n, depth);
+    if (n <= b->max_leaf_size || depth >= b->max_depth)
+        return kdrt__emit_leaf(b, node, lists, n, depth);
 
     for (attempt = 0; attempt < 3; ++attempt) {
         axis = (int)((depth + attempt) % 3u);
@@ -996,7 +1112,8 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     children = (uint32_t *)kdrt__alloc(b->allocator, count * sizeof(uint32_t));
     if (!children) return KDRT_ERROR_OUT_OF_MEMORY;
     for (k = 0; k < 3; ++k) {
-        uint32_t *below = children + (size_t)k * nb, *above = children + 3u * (size_t)nb + (size_t)k * na;
+        uint32_t *below = children + (size_t)k * nb,
+                 *above = children + 3u * (size_t)nb + (size_t)k * na;
         const uint32_t *list = lists + (size_t)k * n;
         for (i = 0; i < n; ++i) {
             unsigned char side = b->side[list[i]];
@@ -1007,15 +1124,14 @@ static kdrt_result kdrt__build_node(kdrt__builder *b, const uint32_t *lists, uin
     r = kdrt__build_node(b, children, nb, depth + 1);
     if (r == KDRT_SUCCESS) {
         /* The below child follows at node + 1; the above child starts here. */
-        b->nodes[node].u.split = split;
-        b->nodes[node].bits = (b->node_count << 2) | (uint32_t)axis;
+        b->nodes[node] = kdrt__node_inner((uint32_t)axis, split, b->node_count);
         r = kdrt__build_node(b, children + 3u * (size_t)nb, na, depth + 1);
     }
     kdrt__free(b->allocator, children);
     return r;
 }
 
-/* ---- SAH builder: binned large nodes, events kept in order below, perfect splits ---- */
+/* ==== SAH builder: perfect splits (clipping a triangle to a node) ==== */
 
 /* A reference: the box of the part of triangle tri that lies inside its node. */
 typedef struct kdrt__ref {
@@ -1025,8 +1141,8 @@ typedef struct kdrt__ref {
 
 /* Box of the polygon pts[0..n), rounded outwards to float and kept within [blo, bhi]; 0 when
    that leaves nothing. */
-static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const float bhi[3], float lo[3],
-                             float hi[3])
+static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const float bhi[3],
+                             float lo[3], float hi[3])
 {
     int a, j;
     if (n == 0) return 0;
@@ -1050,7 +1166,8 @@ static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const 
    [child_lo[0], child_hi[1]] (Sutherland-Hodgman in double), cut by the plane into the part in
    each child's box; their boxes go to lo[c], hi[c]. Returns bit c set when child c gets some. */
 static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis, float pos,
-                                 float child_lo[2][3], float child_hi[2][3], float lo[2][3], float hi[2][3])
+                                 float child_lo[2][3], float child_hi[2][3], float lo[2][3],
+                                 float hi[2][3])
 {
     double poly[2][9][3], part[2][11][3];
     const float *blo = child_lo[0], *bhi = child_hi[1];
@@ -1097,9 +1214,12 @@ static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis
         }
     }
     for (i = 0; i < 2; ++i)
-        if (kdrt__polygon_box(part[i], count[i], child_lo[i], child_hi[i], lo[i], hi[i])) result |= 1u << i;
+        if (kdrt__polygon_box(part[i], count[i], child_lo[i], child_hi[i], lo[i], hi[i]))
+            result |= 1u << i;
     return result;
 }
+
+/* ==== arena ==== */
 
 /* Scratch memory given back in stack order, as the depth-first build needs it: a list of chunks
    kept for reuse, so once the path down the tree is warm a node costs no allocation. */
@@ -1175,6 +1295,8 @@ static void kdrt__arena_free(kdrt__arena *arena)
     arena->current = NULL;
 }
 
+/* ==== events ==== */
+
 /* Events of the exact sweep, one uint64_t each: a float's bits turned so that unsigned order is
    numeric order (-0 taken as +0) in the high 32 bits, the event type in bits 30-31 and the index
    of its reference in the node below. At equal positions the sweep takes ends, then planars, then
@@ -1237,6 +1359,8 @@ static void kdrt__sort_keys(uint64_t *a, size_t n)
     }
 }
 
+/* ==== SAH sweep: costing candidate planes, exact and binned ==== */
+
 typedef struct kdrt__plane {
     int axis; /* -1: no split beats a leaf */
     float pos;
@@ -1253,14 +1377,15 @@ typedef struct kdrt__axis_cost {
     float trav, isect, isect_empty; /* SAH constants; isect_empty with the empty bonus */
 } kdrt__axis_cost;
 
-static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const float lo[3], const float hi[3],
-                                        float inv_area)
+static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const float lo[3],
+                                        const float hi[3], float inv_area)
 {
     kdrt__axis_cost c;
     int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
     float d1 = hi[k1] - lo[k1], d2 = hi[k2] - lo[k2];
     c.k = k, c.lo = lo[k], c.hi = hi[k], c.cap = d1 * d2, c.side = d1 + d2, c.inv_area = inv_area;
-    c.trav = b->sah_trav, c.isect = b->sah_isect, c.isect_empty = b->sah_isect * (1.0f - b->sah_empty_bonus);
+    c.trav = b->sah_trav, c.isect = b->sah_isect,
+    c.isect_empty = b->sah_isect * (1.0f - b->sah_empty_bonus);
     return c;
 }
 
@@ -1275,11 +1400,13 @@ static void kdrt__consider(const kdrt__axis_cost *c, kdrt__plane *best, float po
     p_above = (c->cap + (c->hi - pos) * c->side) * c->inv_area;
     scale = (below + planars == 0 || above == 0) ? c->isect_empty : c->isect;
     cost = c->trav + scale * (p_below * (float)(below + planars) + p_above * (float)above);
-    if (cost < best->cost) best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
+    if (cost < best->cost)
+        best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
     if (planars == 0) return; /* the same plane again: no better */
     scale = (below == 0 || above + planars == 0) ? c->isect_empty : c->isect;
     cost = c->trav + scale * (p_below * (float)below + p_above * (float)(above + planars));
-    if (cost < best->cost) best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
+    if (cost < best->cost)
+        best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
 }
 
 /* A reference's events on axis k (one for a box flat on the axis, else two); returns how many. */
@@ -1297,8 +1424,8 @@ static uint32_t kdrt__push_events(const kdrt__ref *ref, uint32_t index, int k, u
 
 /* The sweep over one axis's sorted events of a node of n references: every distinct position is
    a candidate plane, costed with the counts on its sides. */
-static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, size_t count, uint32_t n,
-                        kdrt__plane *best)
+static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, size_t count,
+                        uint32_t n, kdrt__plane *best)
 {
     size_t i = 0;
     uint32_t below = 0, above = n;
@@ -1317,7 +1444,7 @@ static void kdrt__sweep(const kdrt__axis_cost *cost, const uint64_t *events, siz
     }
 }
 
-/* Below KDRT__SAH_EXACT_MAX references every candidate plane is tried, from each axis's events
+/* At most KDRT_SAH_EXACT_MAX references, every candidate plane is tried, from each axis's events
    kept in order (Wald & Havran 2006): sorted once where a subtree comes down to that size, then
    split in order at every node, so that a node costs O(n) and only the events of the references
    its plane cuts are made and sorted again. */
@@ -1328,7 +1455,8 @@ typedef struct kdrt__events {
 
 /* Each axis's events of refs[0..n), sorted, in arrays from the arena (room for 2n + 1 each: the
    spare slot is kdrt__child_events'). */
-static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs, uint32_t n, kdrt__events *out)
+static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs, uint32_t n,
+                                       kdrt__events *out)
 {
     uint32_t r;
     int k;
@@ -1336,23 +1464,22 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
         out->axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
         if (!out->axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
         out->count[k] = 0;
-        for (r = 0; r < n; ++r) out->count[k] += kdrt__push_events(&refs[r], r, k, out->axis[k] + out->count[k]);
+        for (r = 0; r < n; ++r)
+            out->count[k] += kdrt__push_events(&refs[r], r, k, out->axis[k] + out->count[k]);
         kdrt__sort_keys(out->axis[k], out->count[k]);
     }
     return KDRT_SUCCESS;
 }
 
-/* Binned sweep for large nodes: each axis cut into KDRT__SAH_BINS equal bins, a reference counted
+/* Binned sweep for large nodes: each axis cut into KDRT_SAH_BINS equal bins, a reference counted
    in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
-#ifndef KDRT__SAH_BINS /* overridable only to measure the choice (README) */
-#define KDRT__SAH_BINS 256u
-#endif
 
-static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n, const float lo[3],
-                               const float hi[3], float inv_area, kdrt__plane *best)
+static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
+                               const float lo[3], const float hi[3], float inv_area,
+                               kdrt__plane *best)
 {
-    const uint32_t bins = KDRT__SAH_BINS;
-    uint32_t starts[3][KDRT__SAH_BINS], ends[3][KDRT__SAH_BINS], r, i;
+    const uint32_t bins = KDRT_SAH_BINS;
+    uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS], r, i;
     float scale[3];
     int k;
     memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
@@ -1372,20 +1499,18 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
         cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
         for (i = 1; i < bins; ++i) {
             below += starts[k][i - 1], ended += ends[k][i - 1];
-            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below, 0, n - ended);
+            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below,
+                           0, n - ended);
         }
     }
 }
 
-/* Nodes with more references than this are binned; below it every candidate is tried, from
-   events kept sorted (kdrt__events). */
-#ifndef KDRT__SAH_EXACT_MAX /* overridable only to measure the choice (README) */
-#define KDRT__SAH_EXACT_MAX 128u
-#endif
+/* ==== SAH node: choosing the plane, splitting references and events ==== */
 
 static float kdrt__half_area(const float lo[3], const float hi[3])
 {
-    return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) + (hi[2] - lo[2]) * (hi[0] - lo[0]);
+    return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) +
+           (hi[2] - lo[2]) * (hi[0] - lo[0]);
 }
 
 /* Which side of the plane a reference lies on: KDRT__SIDE_BELOW, _ABOVE, or both when the plane
@@ -1393,20 +1518,22 @@ static float kdrt__half_area(const float lo[3], const float hi[3])
 static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 {
     float l = r->lo[plane->axis], h = r->hi[plane->axis];
-    if (l == plane->pos && h == plane->pos) return plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
+    if (l == plane->pos && h == plane->pos)
+        return plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
     if (h <= plane->pos) return KDRT__SIDE_BELOW;
     if (l >= plane->pos) return KDRT__SIDE_ABOVE;
     return KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
 }
 
-/* The children's references, in arrays from alloc (the arena, or the allocator at the top of a
-   parallel build): a reference on one side is copied, one the plane cuts is split by
-   kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When sides is not
-   NULL it gets each reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
-static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
-                                    uint32_t n, const kdrt__plane *plane, float child_lo[2][3],
-                                    float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2],
-                                    unsigned char *sides, uint32_t *index[2])
+/* The children's references, in arrays from the arena (or, with no arena, at the top of a
+   parallel build, from the allocator): a reference on one side is copied, one the plane cuts is
+   split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When
+   sides is not NULL it gets each reference's side, and index[c] where it went in child c (or
+   KDRT_INVALID_ID). */
+static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
+                                    const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
+                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
+                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
 {
     uint32_t only[2] = {0, 0}, both = 0, r, c;
     for (r = 0; r < n; ++r) {
@@ -1416,8 +1543,9 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, 
     }
     for (c = 0; c < 2; ++c) {
         size_t room = (size_t)only[c] + both;
-        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, (room ? room : 1) * sizeof(kdrt__ref))
-                                       : kdrt__alloc(b->allocator, (room ? room : 1) * sizeof(kdrt__ref)));
+        child[c] =
+            (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, (room ? room : 1) * sizeof(kdrt__ref))
+                                : kdrt__alloc(b->allocator, (room ? room : 1) * sizeof(kdrt__ref)));
         if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
         count[c] = 0;
     }
@@ -1426,13 +1554,17 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena, 
         float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
         if (side == (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE))
-            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo, child_hi, lo, hi);
+            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo,
+                                    child_hi, lo, hi);
         for (c = 0; c < 2; ++c) {
             kdrt__ref *out = &child[c][count[c]];
             if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
             if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) *out = refs[r];
-            else memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi), out->tri = refs[r].tri;
+            else {
+                memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
+                out->tri = refs[r].tri;
+            }
             ++count[c];
         }
     }
@@ -1443,13 +1575,15 @@ static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__
                               float child_lo[2][3], float child_hi[2][3])
 {
     int c;
-    for (c = 0; c < 2; ++c) memcpy(child_lo[c], lo, 3 * sizeof(float)), memcpy(child_hi[c], hi, 3 * sizeof(float));
+    for (c = 0; c < 2; ++c)
+        memcpy(child_lo[c], lo, 3 * sizeof(float)), memcpy(child_hi[c], hi, 3 * sizeof(float));
     child_hi[0][plane->axis] = plane->pos, child_lo[1][plane->axis] = plane->pos;
 }
 
 /* Every candidate on the three axes, from a node's sorted events. */
-static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n, const float lo[3],
-                             const float hi[3], float inv_area, kdrt__plane *best)
+static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n,
+                             const float lo[3], const float hi[3], float inv_area,
+                             kdrt__plane *best)
 {
     int k;
     for (k = 0; k < 3; ++k) {
@@ -1462,9 +1596,10 @@ static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events,
    plane cheaper than testing all n (cost-based termination). With events (the exact region) every
    candidate is tried; without, the bins choose, and where they find nothing worth a split every
    candidate is tried before the node is made a leaf. */
-static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
-                                      uint32_t n, const kdrt__events *events, const float lo[3],
-                                      const float hi[3], uint32_t depth, kdrt__plane *best)
+static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena,
+                                      const kdrt__ref *refs, uint32_t n, const kdrt__events *events,
+                                      const float lo[3], const float hi[3], uint32_t depth,
+                                      kdrt__plane *best)
 {
     float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
@@ -1476,7 +1611,8 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         if (!(best->cost < leaf_cost)) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
-            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS) return KDRT_ERROR_OUT_OF_MEMORY;
+            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
+                return KDRT_ERROR_OUT_OF_MEMORY;
             kdrt__sweep_axes(b, &all, n, lo, hi, 1.0f / area, best);
             kdrt__arena_release(arena, mark);
         }
@@ -1490,7 +1626,8 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
    the references the plane cut, made from their clipped boxes. */
 static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *events, uint32_t n,
                                       const unsigned char *sides, uint32_t *const index[2],
-                                      kdrt__ref *const child[2], const uint32_t count[2], kdrt__events out[2])
+                                      kdrt__ref *const child[2], const uint32_t count[2],
+                                      kdrt__events out[2])
 {
     const unsigned cut = KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
     uint64_t *fresh = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)n + 1) * sizeof(uint64_t));
@@ -1503,11 +1640,13 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
     cut_refs[1] = cut_refs[0] + n;
     for (r = 0; r < n; ++r)
         for (c = 0; c < 2; ++c)
-            if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID) cut_refs[c][cuts[c]++] = index[c][r];
+            if (sides[r] == cut && index[c][r] != KDRT_INVALID_ID)
+                cut_refs[c][cuts[c]++] = index[c][r];
     for (k = 0; k < 3; ++k) {
         size_t i, kept[2] = {0, 0};
         for (c = 0; c < 2; ++c) {
-            out[c].axis[k] = (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
+            out[c].axis[k] =
+                (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
             if (!out[c].axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
         }
         /* Written on both sides and kept on one: no branch to mispredict (each array has a slot
@@ -1525,7 +1664,8 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
             uint64_t *o = out[c].axis[k];
             size_t made = 0, w;
             for (r = 0; r < cuts[c]; ++r)
-                made += kdrt__push_events(&child[c][cut_refs[c][r]], cut_refs[c][r], k, fresh + made);
+                made +=
+                    kdrt__push_events(&child[c][cut_refs[c][r]], cut_refs[c][r], k, fresh + made);
             kdrt__sort_keys(fresh, made);
             out[c].count[k] = kept[c] + made;
             for (i = kept[c], w = kept[c] + made; made > 0;) /* merge from the back, in place */
@@ -1538,9 +1678,9 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
 /* Builds the subtree of a node with box [lo, hi] into b, depth first (the below child right
    after its parent); events are the node's sorted events in the exact region, NULL above it.
    Scratch memory comes from the arena and is back there on return. */
-static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs, uint32_t n,
-                                  const kdrt__events *events, const float lo[3], const float hi[3],
-                                  uint32_t depth)
+static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
+                                  uint32_t n, const kdrt__events *events, const float lo[3],
+                                  const float hi[3], uint32_t depth)
 {
     kdrt__mark mark = kdrt__arena_mark(arena);
     kdrt__ref *child[2];
@@ -1551,7 +1691,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
     kdrt__plane plane;
     kdrt_result r;
 
-    if (!events && n <= KDRT__SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
+    if (!events && n <= KDRT_SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
         /* Down to the exact region: each axis's events sorted, once for the whole subtree. */
         r = kdrt__sorted_events(arena, refs, n, &entry);
         if (r != KDRT_SUCCESS) return r;
@@ -1580,19 +1720,21 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
         if (!sides || !index[0] || !index[1]) return KDRT_ERROR_OUT_OF_MEMORY;
     }
     r = kdrt__split_refs(b, arena, refs, n, &plane, child_lo, child_hi, child, count, sides, index);
-    if (events && r == KDRT_SUCCESS) r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
+    if (events && r == KDRT_SUCCESS)
+        r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
     if (r == KDRT_SUCCESS)
-        r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL, child_lo[0],
-                           child_hi[0], depth + 1);
+        r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL,
+                           child_lo[0], child_hi[0], depth + 1);
     if (r == KDRT_SUCCESS) {
-        b->nodes[node].u.split = plane.pos;
-        b->nodes[node].bits = (b->node_count << 2) | (uint32_t)plane.axis;
-        r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL, child_lo[1],
-                           child_hi[1], depth + 1);
+        b->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, b->node_count);
+        r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL,
+                           child_lo[1], child_hi[1], depth + 1);
     }
     kdrt__arena_release(arena, mark);
     return r;
 }
+
+/* ==== parallel top and join ==== */
 
 /* A parallel build cuts the top of the tree, serially, into subtrees built as independent tasks
    and then joined in depth-first order. Where it cuts depends only on the input, never on the
@@ -1630,8 +1772,8 @@ static void kdrt__run_task(void *data, uint32_t index)
 }
 
 /* The top of the tree: splits large nodes and hands the rest to tasks; takes ownership of refs. */
-static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__ref *refs, uint32_t n,
-                                 const float lo[3], const float hi[3], uint32_t depth)
+static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__ref *refs,
+                                 uint32_t n, const float lo[3], const float hi[3], uint32_t depth)
 {
     kdrt__ref *child[2] = {NULL, NULL};
     uint32_t node = top->node_count++, count[2];
@@ -1655,8 +1797,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         t->out.leaves = t->out.depth_reached = 0;
         t->refs = refs, t->n = n, t->depth = depth, t->result = KDRT_SUCCESS;
         memcpy(t->lo, lo, sizeof t->lo), memcpy(t->hi, hi, sizeof t->hi);
-        top->nodes[node].u.first_ref = top->task_count++;
-        top->nodes[node].bits = KDRT__LEAF;
+        top->nodes[node] = kdrt__node_leaf(top->task_count++, 0); /* first_ref: the task */
         return KDRT_SUCCESS;
     }
     kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
@@ -1667,9 +1808,9 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         return r;
     }
     r = kdrt__sah_top(b, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1);
-    top->nodes[node].u.split = plane.pos;
-    top->nodes[node].bits = (top->node_count << 2) | (uint32_t)plane.axis;
-    if (r == KDRT_SUCCESS) return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
+    top->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, top->node_count);
+    if (r == KDRT_SUCCESS)
+        return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
     kdrt__free(b->allocator, child[1]);
     return r;
 }
@@ -1680,15 +1821,17 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
 {
     const kdrt__node *n = &top->nodes[i];
     uint32_t node = b->node_count, k;
-    if ((n->bits & 3u) == KDRT__LEAF) {
+    if (kdrt__node_is_leaf(n)) {
         const kdrt__builder *t = &top->tasks[n->u.first_ref].out;
         for (k = 0; k < t->node_count; ++k) {
-            kdrt__node copy = t->nodes[k];
-            if ((copy.bits & 3u) == KDRT__LEAF) copy.u.first_ref += b->ref_count;
-            else copy.bits += node << 2;
-            b->nodes[node + k] = copy;
+            const kdrt__node *c = &t->nodes[k];
+            b->nodes[node + k] =
+                kdrt__node_is_leaf(c)
+                    ? kdrt__node_leaf(c->u.first_ref + b->ref_count, kdrt__node_count(c))
+                    : kdrt__node_inner(kdrt__node_axis(c), c->u.split, kdrt__node_above(c) + node);
         }
-        if (t->ref_count) memcpy(b->refs + b->ref_count, t->refs, (size_t)t->ref_count * sizeof(uint32_t));
+        if (t->ref_count)
+            memcpy(b->refs + b->ref_count, t->refs, (size_t)t->ref_count * sizeof(uint32_t));
         b->node_count += t->node_count, b->ref_count += t->ref_count;
         b->leaves += t->leaves;
         if (t->depth_reached > b->depth_reached) b->depth_reached = t->depth_reached;
@@ -1696,15 +1839,15 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
     }
     b->node_count += 1;
     kdrt__join(b, top, i + 1);
-    b->nodes[node].u.split = n->u.split;
-    b->nodes[node].bits = (b->node_count << 2) | (n->bits & 3u);
-    kdrt__join(b, top, n->bits >> 2);
+    b->nodes[node] = kdrt__node_inner(kdrt__node_axis(n), n->u.split, b->node_count);
+    kdrt__join(b, top, kdrt__node_above(n));
 }
 
 /* The SAH build: the top, the tasks (on the caller's scheduler, or one after the other), then
    the join. Takes ownership of refs. */
-static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *scheduler, kdrt__ref *refs,
-                                   uint32_t n, const float lo[3], const float hi[3])
+static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *scheduler,
+                                   kdrt__ref *refs, uint32_t n, const float lo[3],
+                                   const float hi[3])
 {
     kdrt__top *top = (kdrt__top *)kdrt__alloc(b->allocator, sizeof *top);
     uint64_t nodes = 0, total_refs = 0;
@@ -1722,17 +1865,23 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
                 top->largest_first[j] = top->largest_first[j - 1];
             top->largest_first[j] = i;
         }
-        if (scheduler && scheduler->run) scheduler->run(scheduler->user, kdrt__run_task, top, top->task_count);
+        if (scheduler && scheduler->run)
+            scheduler->run(scheduler->user, kdrt__run_task, top, top->task_count);
         else for (i = 0; i < top->task_count; ++i) kdrt__run_task(top, i);
         for (i = 0; i < top->task_count && r == KDRT_SUCCESS; ++i) r = top->tasks[i].result;
     }
     if (r == KDRT_SUCCESS) {
         nodes = top->node_count - top->task_count;
-        for (i = 0; i < top->task_count; ++i) nodes += top->tasks[i].out.node_count, total_refs += top->tasks[i].out.ref_count;
+        for (i = 0; i < top->task_count; ++i)
+            nodes += top->tasks[i].out.node_count, total_refs += top->tasks[i].out.ref_count;
         if (nodes > KDRT_MAX_TRIANGLES || total_refs > 0xFFFFFFFFu) r = KDRT_ERROR_SIZE_OVERFLOW;
     }
-    if (r == KDRT_SUCCESS) r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, (uint32_t)nodes, sizeof(kdrt__node));
-    if (r == KDRT_SUCCESS) r = kdrt__reserve(b->allocator, (void **)&b->refs, &b->ref_capacity, (uint32_t)total_refs + 1, sizeof(uint32_t));
+    if (r == KDRT_SUCCESS)
+        r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, (uint32_t)nodes,
+                          sizeof(kdrt__node));
+    if (r == KDRT_SUCCESS)
+        r = kdrt__reserve(b->allocator, (void **)&b->refs, &b->ref_capacity,
+                          (uint32_t)total_refs + 1, sizeof(uint32_t));
     if (r == KDRT_SUCCESS) kdrt__join(b, top, 0);
     for (i = 0; i < top->task_count; ++i) {
         kdrt__free(b->allocator, top->tasks[i].refs); /* set only if the task never ran */
@@ -1743,17 +1892,7 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
     return r;
 }
 
-typedef struct kdrt__key {
-    float key;
-    uint32_t tri;
-} kdrt__key;
-
-static int kdrt__key_less(const void *pa, const void *pb)
-{
-    const kdrt__key *a = (const kdrt__key *)pa, *b = (const kdrt__key *)pb;
-    if (a->key != b->key) return a->key < b->key ? -1 : 1;
-    return a->tri < b->tri ? -1 : (a->tri > b->tri); /* a total order: same tree on every libc */
-}
+/* ==== packing: the triangles laid out for the traversal ==== */
 
 /* A hash of a position's bits (MurmurHash3's finaliser over the three words). */
 static uint32_t kdrt__hash_position(const float p[3])
@@ -1773,11 +1912,12 @@ static uint32_t kdrt__hash_position(const float p[3])
    position once (compared bit for bit, so the shared corners of a soup are shared too). A leaf's
    triangles and its neighbours' thus lie close together in both arrays. The floats are the
    caller's, so no answer changes, and neither does the order: ties are broken by the caller's
-   triangle index, which each record keeps. (Records holding their corners' floats, 40 bytes, are
-   a few per cent faster on primary rays but take the tree past 80 bytes a triangle.) */
+   triangle index, which each record keeps. (A record indexes its corners rather than hold their
+   floats, which would take 40 bytes instead of 16 and share nothing.) */
 static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_triangles *m,
                                         const kdrt__node *nodes, uint32_t *refs, uint32_t ref_count,
-                                        kdrt_tree *tree, uint32_t *out_triangles, uint32_t *out_vertices)
+                                        kdrt_tree *tree, uint32_t *out_triangles,
+                                        uint32_t *out_vertices)
 {
     uint32_t *slot, *table, stack[KDRT_MAX_DEPTH], sp = 0, node = 0, count = 0, unique = 0, i;
     size_t corners, size, h;
@@ -1794,13 +1934,13 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
     memset(slot, 0xFF, (size_t)m->triangle_count * sizeof(uint32_t));
     for (;;) {
         const kdrt__node *n = &nodes[node];
-        if ((n->bits & 3u) != KDRT__LEAF) {
+        if (!kdrt__node_is_leaf(n)) {
             KDRT_ASSERT(sp < KDRT_MAX_DEPTH); /* the build bounds the depth */
-            stack[sp++] = n->bits >> 2;
+            stack[sp++] = kdrt__node_above(n);
             node += 1;
             continue;
         }
-        for (i = 0; i < n->bits >> 2; ++i) {
+        for (i = 0; i < kdrt__node_count(n); ++i) {
             uint32_t tri = refs[n->u.first_ref + i];
             if (slot[tri] == KDRT_INVALID_ID) slot[tri] = count++;
         }
@@ -1808,7 +1948,8 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
         node = stack[--sp];
     }
     corners = 3 * (size_t)count;
-    if (corners > (size_t)-1 / 28u) { /* the records take 16 / 3 bytes a corner, the table below 28 */
+    /* The records take 16 / 3 bytes a corner, the table below 28. */
+    if (corners > (size_t)-1 / 28u) {
         kdrt__free(a, slot);
         return KDRT_ERROR_SIZE_OVERFLOW;
     }
@@ -1839,7 +1980,8 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
             uint32_t *corner = &tree->triangles[i].v[k];
             float p[3];
             kdrt__load_vertex(m, *corner, p);
-            for (h = kdrt__hash_position(p) & (size - 1); table[h] != KDRT_INVALID_ID; h = (h + 1) & (size - 1))
+            for (h = kdrt__hash_position(p) & (size - 1); table[h] != KDRT_INVALID_ID;
+                 h = (h + 1) & (size - 1))
                 if (memcmp(seen + 3 * (size_t)table[h], p, sizeof p) == 0) break;
             if (table[h] == KDRT_INVALID_ID) {
                 memcpy(seen + 3 * (size_t)unique, p, sizeof p);
@@ -1858,6 +2000,8 @@ static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_tria
     *out_vertices = unique;
     return KDRT_SUCCESS;
 }
+
+/* ==== depth limit and SAH cost ==== */
 
 static uint32_t kdrt__default_depth(uint32_t n)
 {
@@ -1889,95 +2033,115 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
     for (;;) {
         const kdrt__node *node = &tree->nodes[at.node];
         double share = kdrt__box_area(at.lo, at.hi) / root_area;
-        int axis = (int)(node->bits & 3u);
-        if (axis == (int)KDRT__LEAF) {
-            cost += share * intersection_cost * (double)(node->bits >> 2);
+        int axis = (int)kdrt__node_axis(node);
+        if (kdrt__node_is_leaf(node)) {
+            cost += share * intersection_cost * (double)kdrt__node_count(node);
             if (sp == 0) return cost;
             at = stack[--sp];
             continue;
         }
         cost += share * traversal_cost;
-        KDRT_ASSERT(sp < KDRT_MAX_DEPTH && at.lo[axis] <= node->u.split && node->u.split <= at.hi[axis]);
+        KDRT_ASSERT(sp < KDRT_MAX_DEPTH && at.lo[axis] <= node->u.split &&
+                    node->u.split <= at.hi[axis]);
         stack[sp] = at; /* the above child, for later */
-        stack[sp].node = node->bits >> 2;
+        stack[sp].node = kdrt__node_above(node);
         stack[sp++].lo[axis] = node->u.split;
         at.node += 1; /* the below child follows its parent */
         at.hi[axis] = node->u.split;
     }
 }
 
-KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
-                                     kdrt_tree **out_tree, kdrt_build_report *report)
-{
-    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
-    kdrt_triangles m;
-    kdrt_tree *tree = NULL;
-    kdrt__builder b;
-    float *scratch = NULL, p[3][3];
-    uint32_t *valid = NULL, *lists = NULL, n = 0, tri, skipped = 0, degenerate = 0, i, records, vertices;
-    kdrt__key *keys = NULL;
-    kdrt_result r;
-    size_t bytes;
-    int a, k;
+/* ==== kdrt_tree_build and its steps ==== */
 
-    if (report) {
-        memset(report, 0, sizeof *report);
-        report->invalid_triangle = KDRT_INVALID_ID;
-    }
-    if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
-    *out_tree = NULL;
-    r = kdrt__check_view(mesh, &m);
-    if (r != KDRT_SUCCESS) return r;
-    if (opt.builder != KDRT_BUILDER_DEFAULT && opt.builder != KDRT_BUILDER_MEDIAN && opt.builder != KDRT_BUILDER_SAH)
+/* Options: KDRT_ERROR_INVALID_OPTION for an unknown builder, intersector or flag or a cost out
+   of range, KDRT_ERROR_NULL_ARGUMENT for an allocator with one hook of the two. */
+static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
+{
+    if (opt->builder != KDRT_BUILDER_DEFAULT && opt->builder != KDRT_BUILDER_MEDIAN &&
+        opt->builder != KDRT_BUILDER_SAH)
         return KDRT_ERROR_INVALID_OPTION;
     /* Negated comparisons also turn NaN away. */
-    if (!(opt.sah_traversal_cost >= 0.0f) || !(opt.sah_intersection_cost >= 0.0f) ||
-        !(opt.sah_empty_bonus >= 0.0f && opt.sah_empty_bonus < 1.0f) ||
-        !kdrt__finite(opt.sah_traversal_cost) || !kdrt__finite(opt.sah_intersection_cost))
+    if (!(opt->sah_traversal_cost >= 0.0f) || !(opt->sah_intersection_cost >= 0.0f) ||
+        !(opt->sah_empty_bonus >= 0.0f && opt->sah_empty_bonus < 1.0f) ||
+        !kdrt__finite(opt->sah_traversal_cost) || !kdrt__finite(opt->sah_intersection_cost))
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt.intersector != KDRT_INTERSECTOR_DEFAULT && opt.intersector != KDRT_INTERSECTOR_WATERTIGHT &&
-        opt.intersector != KDRT_INTERSECTOR_FAST)
+    if (opt->intersector != KDRT_INTERSECTOR_DEFAULT &&
+        opt->intersector != KDRT_INTERSECTOR_WATERTIGHT &&
+        opt->intersector != KDRT_INTERSECTOR_FAST)
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt.flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
-    if ((opt.allocator.alloc == NULL) != (opt.allocator.free == NULL)) return KDRT_ERROR_NULL_ARGUMENT;
+    if (opt->flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
+    if ((opt->allocator.alloc == NULL) != (opt->allocator.free == NULL))
+        return KDRT_ERROR_NULL_ARGUMENT;
+    return KDRT_SUCCESS;
+}
 
-    memset(&b, 0, sizeof b);
-    b.allocator = &opt.allocator;
-    b.max_leaf_size = opt.max_leaf_size;
-    b.mesh = &m;
-    b.sah_trav = opt.sah_traversal_cost > 0.0f ? opt.sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
-    b.sah_isect = opt.sah_intersection_cost > 0.0f ? opt.sah_intersection_cost : KDRT_DEFAULT_SAH_INTERSECTION_COST;
-    b.sah_empty_bonus = opt.sah_empty_bonus > 0.0f ? opt.sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
-    b.max_depth = opt.max_depth ? opt.max_depth : kdrt__default_depth(m.triangle_count);
-    if (b.max_depth > KDRT_MAX_DEPTH) b.max_depth = KDRT_MAX_DEPTH;
+/* The builder's settings from checked options, a zero option replaced by its default; the
+   builder keeps pointers to opt and m, and its arrays start empty. */
+static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
+                               const kdrt_triangles *m)
+{
+    memset(b, 0, sizeof *b);
+    b->allocator = &opt->allocator;
+    b->max_leaf_size = opt->max_leaf_size;
+    b->mesh = m;
+    b->sah_trav =
+        opt->sah_traversal_cost > 0.0f ? opt->sah_traversal_cost : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
+    b->sah_isect = opt->sah_intersection_cost > 0.0f ? opt->sah_intersection_cost
+                                                      : KDRT_DEFAULT_SAH_INTERSECTION_COST;
+    b->sah_empty_bonus =
+        opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
+    b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangle_count);
+    if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
+}
 
-    tree = (kdrt_tree *)kdrt__alloc(&opt.allocator, sizeof *tree);
-    if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
+/* An empty tree over m, with no nodes yet; NULL when out of memory. */
+static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_triangles *m)
+{
+    kdrt_tree *tree = (kdrt_tree *)kdrt__alloc(&opt->allocator, sizeof *tree);
+    if (!tree) return NULL;
     memset(tree, 0, sizeof *tree);
-    tree->mesh = m;
-    tree->watertight = opt.intersector != KDRT_INTERSECTOR_FAST;
-    tree->allocator = opt.allocator;
+    tree->mesh = *m;
+    tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
+    tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
+    return tree;
+}
 
-    /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles. */
-    if (!kdrt__mul_size((size_t)m.triangle_count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes)) {
-        r = KDRT_ERROR_SIZE_OVERFLOW;
-        goto fail;
-    }
-    scratch = (float *)kdrt__alloc(&opt.allocator, bytes);
-    if (!scratch) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
-    valid = (uint32_t *)(scratch + 9 * (size_t)m.triangle_count);
-    b.lo = scratch;
-    b.hi = scratch + 3 * (size_t)m.triangle_count;
-    b.centroid = scratch + 6 * (size_t)m.triangle_count;
-    b.side = (unsigned char *)(valid + m.triangle_count);
+/* Triangle preparation. Every triangle is checked: an invalid one fails the build, or under
+   KDRT_BUILD_SKIP_INVALID_TRIANGLES is skipped, and a zero-area one is left out. The others get
+   their box and centroid in b (by the caller's index), grow *bounds and are listed, in order, in
+   (*valid)[0 .. *n). All of it is one allocation, *scratch, for the caller to free. */
+static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangles *m,
+                                           uint32_t flags, kdrt_aabb *bounds, float **scratch,
+                                           uint32_t **valid, uint32_t *n, kdrt_build_report *report)
+{
+    const size_t count = m->triangle_count;
+    uint32_t tri, skipped = 0, degenerate = 0;
+    float p[3][3];
+    size_t bytes;
+    kdrt_result r;
+    int a, k;
 
-    for (tri = 0; tri < m.triangle_count; ++tri) {
-        float *lo = scratch + 3 * (size_t)tri, *hi = lo + 3 * (size_t)m.triangle_count, *c = hi + 3 * (size_t)m.triangle_count;
-        r = kdrt__check_triangle(&m, tri, p);
+    *n = 0;
+    /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles, then
+       the builder's side marks. */
+    if (!kdrt__mul_size(count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes))
+        return KDRT_ERROR_SIZE_OVERFLOW;
+    *scratch = (float *)kdrt__alloc(b->allocator, bytes);
+    if (!*scratch) return KDRT_ERROR_OUT_OF_MEMORY;
+    *valid = (uint32_t *)(*scratch + 9 * count);
+    b->lo = *scratch;
+    b->hi = *scratch + 3 * count;
+    b->centroid = *scratch + 6 * count;
+    b->side = (unsigned char *)(*valid + count);
+
+    for (tri = 0; tri < m->triangle_count; ++tri) {
+        float *lo = *scratch + 3 * (size_t)tri, *hi = lo + 3 * count, *c = hi + 3 * count;
+        r = kdrt__check_triangle(m, tri, p);
         if (r != KDRT_SUCCESS) {
-            if (report && report->invalid_triangle == KDRT_INVALID_ID) report->invalid_triangle = tri;
-            if (!(opt.flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) goto fail;
+            if (report && report->invalid_triangle == KDRT_INVALID_ID)
+                report->invalid_triangle = tri;
+            if (!(flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) return r;
             ++skipped;
             continue;
         }
@@ -1996,72 +2160,135 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
             c[a] = (p[0][a] + p[1][a] + p[2][a]) * (1.0f / 3.0f);
             c[a] = c[a] < lo[a] ? lo[a] : (c[a] > hi[a] ? hi[a] : c[a]);
         }
-        kdrt_aabb_grow(&tree->bounds, lo);
-        kdrt_aabb_grow(&tree->bounds, hi);
-        valid[n++] = tri;
+        kdrt_aabb_grow(bounds, lo);
+        kdrt_aabb_grow(bounds, hi);
+        (*valid)[(*n)++] = tri;
     }
-    r = KDRT_SUCCESS;
     if (report) report->skipped_triangles = skipped, report->degenerate_triangles = degenerate;
+    return KDRT_SUCCESS;
+}
 
-    if (opt.max_leaf_size == 0 || n == 0) {
-        /* No tree: one leaf holding every usable triangle, tested in order. */
-        r = kdrt__reserve(b.allocator, (void **)&b.nodes, &b.node_capacity, 1, sizeof(kdrt__node));
-        if (r == KDRT_SUCCESS) b.node_count = 1, r = kdrt__emit_leaf(&b, 0, valid, n, 0);
-    } else if (opt.builder == KDRT_BUILDER_SAH || opt.builder == KDRT_BUILDER_DEFAULT) {
-        kdrt__ref *refs = (kdrt__ref *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__ref));
-        if (!refs) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
-        for (i = 0; i < n; ++i) {
-            memcpy(refs[i].lo, b.lo + 3 * (size_t)valid[i], sizeof refs[i].lo);
-            memcpy(refs[i].hi, b.hi + 3 * (size_t)valid[i], sizeof refs[i].hi);
-            refs[i].tri = valid[i];
-        }
-        r = kdrt__sah_build(&b, &opt.scheduler, refs, n, tree->bounds.min, tree->bounds.max);
-    } else {
-        /* Sort once per axis by centroid; every node then filters its parent's lists. */
-        lists = (uint32_t *)kdrt__alloc(&opt.allocator, 3 * (size_t)n * sizeof(uint32_t));
-        keys = (kdrt__key *)kdrt__alloc(&opt.allocator, (size_t)n * sizeof(kdrt__key));
-        if (!lists || !keys) { r = KDRT_ERROR_OUT_OF_MEMORY; goto fail; }
-        for (a = 0; a < 3; ++a) {
-            for (i = 0; i < n; ++i) keys[i].key = b.centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
-            qsort(keys, n, sizeof *keys, kdrt__key_less);
-            for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
-        }
-        kdrt__free(&opt.allocator, keys);
-        keys = NULL;
-        r = kdrt__build_node(&b, lists, n, 0);
+/* No tree (max_leaf_size 0, or nothing to build over): one leaf holding every usable triangle,
+   tested in order. */
+static kdrt_result kdrt__build_no_tree(kdrt__builder *b, const uint32_t *valid, uint32_t n)
+{
+    kdrt_result r =
+        kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, 1, sizeof(kdrt__node));
+    if (r != KDRT_SUCCESS) return r;
+    b->node_count = 1;
+    return kdrt__emit_leaf(b, 0, valid, n, 0);
+}
+
+/* The median builder: the triangles sorted once per axis by centroid; every node then filters
+   its parent's lists. */
+static kdrt_result kdrt__build_median(kdrt__builder *b, const uint32_t *valid, uint32_t n)
+{
+    uint32_t *lists = (uint32_t *)kdrt__alloc(b->allocator, 3 * (size_t)n * sizeof(uint32_t)), i;
+    kdrt__key *keys = (kdrt__key *)kdrt__alloc(b->allocator, (size_t)n * sizeof(kdrt__key));
+    kdrt_result r;
+    int a;
+    if (!lists || !keys) {
+        kdrt__free(b->allocator, keys);
+        kdrt__free(b->allocator, lists);
+        return KDRT_ERROR_OUT_OF_MEMORY;
     }
-    if (r != KDRT_SUCCESS) goto fail;
-    r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records, &vertices);
-    if (r != KDRT_SUCCESS) goto fail;
+    for (a = 0; a < 3; ++a) {
+        for (i = 0; i < n; ++i)
+            keys[i].key = b->centroid[3 * (size_t)valid[i] + (size_t)a], keys[i].tri = valid[i];
+        qsort(keys, n, sizeof *keys, kdrt__key_less);
+        for (i = 0; i < n; ++i) lists[(size_t)a * n + i] = keys[i].tri;
+    }
+    kdrt__free(b->allocator, keys);
+    r = kdrt__build_node(b, lists, n, 0);
+    kdrt__free(b->allocator, lists);
+    return r;
+}
 
-    kdrt__shrink(b.allocator, (void **)&b.nodes, &b.node_capacity, b.node_count, sizeof(kdrt__node));
-    kdrt__shrink(b.allocator, (void **)&b.refs, &b.ref_capacity, b.ref_count, sizeof(uint32_t));
-    tree->nodes = b.nodes;
-    tree->refs = b.refs;
-    tree->stats.triangles = n;
-    tree->stats.nodes = b.node_count;
-    tree->stats.leaves = b.leaves;
-    tree->stats.max_depth = b.depth_reached;
-    tree->stats.triangle_refs = b.ref_count;
-    tree->stats.bytes = sizeof *tree + (size_t)b.node_capacity * sizeof(kdrt__node) +
-                        (size_t)b.ref_capacity * sizeof(uint32_t) + (size_t)records * sizeof(kdrt__triangle) +
+/* The SAH builder, from a reference per usable triangle: its box. */
+static kdrt_result kdrt__build_sah(kdrt__builder *b, const kdrt_scheduler *scheduler,
+                                   const uint32_t *valid, uint32_t n, const kdrt_aabb *bounds)
+{
+    kdrt__ref *refs = (kdrt__ref *)kdrt__alloc(b->allocator, (size_t)n * sizeof(kdrt__ref));
+    uint32_t i;
+    if (!refs) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n; ++i) {
+        memcpy(refs[i].lo, b->lo + 3 * (size_t)valid[i], sizeof refs[i].lo);
+        memcpy(refs[i].hi, b->hi + 3 * (size_t)valid[i], sizeof refs[i].hi);
+        refs[i].tri = valid[i];
+    }
+    return kdrt__sah_build(b, scheduler, refs, n, bounds->min, bounds->max);
+}
+
+/* Dispatch: the nodes and leaf references into b, by the builder the options name. */
+static kdrt_result kdrt__build_nodes(kdrt__builder *b, const kdrt_build_options *opt,
+                                     const uint32_t *valid, uint32_t n, const kdrt_aabb *bounds)
+{
+    if (opt->max_leaf_size == 0 || n == 0) return kdrt__build_no_tree(b, valid, n);
+    if (opt->builder == KDRT_BUILDER_SAH || opt->builder == KDRT_BUILDER_DEFAULT)
+        return kdrt__build_sah(b, &opt->scheduler, valid, n, bounds);
+    return kdrt__build_median(b, valid, n);
+}
+
+/* Stats: the builder's arrays, trimmed, go to the tree, and its statistics are filled in. */
+static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triangles,
+                              uint32_t records, uint32_t vertices)
+{
+    kdrt__shrink(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count,
+                 sizeof(kdrt__node));
+    kdrt__shrink(b->allocator, (void **)&b->refs, &b->ref_capacity, b->ref_count, sizeof(uint32_t));
+    tree->nodes = b->nodes;
+    tree->refs = b->refs;
+    tree->stats.triangles = triangles;
+    tree->stats.nodes = b->node_count;
+    tree->stats.leaves = b->leaves;
+    tree->stats.max_depth = b->depth_reached;
+    tree->stats.triangle_refs = b->ref_count;
+    tree->stats.bytes = sizeof *tree + (size_t)b->node_capacity * sizeof(kdrt__node) +
+                        (size_t)b->ref_capacity * sizeof(uint32_t) +
+                        (size_t)records * sizeof(kdrt__triangle) +
                         (size_t)vertices * 3 * sizeof(float);
-    tree->stats.sah_cost = kdrt__sah_cost(tree, b.sah_trav, b.sah_isect);
-    kdrt__free(&opt.allocator, lists);
+    tree->stats.sah_cost = kdrt__sah_cost(tree, b->sah_trav, b->sah_isect);
+}
+
+KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
+                                     kdrt_tree **out_tree, kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt_triangles m;
+    kdrt__builder b;
+    kdrt_tree *tree;
+    float *scratch = NULL;
+    uint32_t *valid = NULL, n = 0, records = 0, vertices = 0;
+    kdrt_result r;
+
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->invalid_triangle = KDRT_INVALID_ID;
+    }
+    if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_tree = NULL;
+    r = kdrt__check_view(mesh, &m);
+    if (r == KDRT_SUCCESS) r = kdrt__check_options(&opt);
+    if (r != KDRT_SUCCESS) return r;
+    kdrt__builder_init(&b, &opt, &m);
+    tree = kdrt__tree_new(&opt, &m);
+    if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
+
+    r = kdrt__prepare_triangles(&b, &m, opt.flags, &tree->bounds, &scratch, &valid, &n, report);
+    if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, &opt, valid, n, &tree->bounds);
+    if (r == KDRT_SUCCESS)
+        r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records,
+                                 &vertices);
+    if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n, records, vertices);
     kdrt__free(&opt.allocator, scratch);
+    if (r != KDRT_SUCCESS) {
+        kdrt__free(&opt.allocator, b.nodes);
+        kdrt__free(&opt.allocator, b.refs);
+        kdrt_tree_free(tree); /* and the triangles packed so far */
+        return r;
+    }
     *out_tree = tree;
     return KDRT_SUCCESS;
-
-fail:
-    kdrt__free(&opt.allocator, keys);
-    kdrt__free(&opt.allocator, lists);
-    kdrt__free(&opt.allocator, scratch);
-    kdrt__free(&opt.allocator, b.nodes);
-    kdrt__free(&opt.allocator, b.refs);
-    kdrt__free(&opt.allocator, tree->triangles);
-    kdrt__free(&opt.allocator, tree->vertices);
-    kdrt__free(&opt.allocator, tree);
-    return r;
 }
 
 KDRT_API void kdrt_tree_free(kdrt_tree *tree)
@@ -2083,6 +2310,8 @@ KDRT_API void kdrt_tree_get_stats(const kdrt_tree *tree, kdrt_tree_stats *out_st
     *out_stats = tree->stats;
 }
 
+/* ==== inspection ==== */
+
 KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree)
 {
     return tree ? tree->stats.nodes : 0u;
@@ -2101,12 +2330,12 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
        or past the above child, else in the below child's. */
     while (at != index) {
         n = &tree->nodes[at];
-        info.axis = (int)(n->bits & 3u);
-        KDRT_ASSERT((uint32_t)info.axis != KDRT__LEAF && index > at);
-        if ((uint32_t)info.axis == KDRT__LEAF) return KDRT_ERROR_INDEX_OUT_OF_RANGE; /* not reached */
-        if (index >= n->bits >> 2) {
+        KDRT_ASSERT(!kdrt__node_is_leaf(n) && index > at);
+        if (kdrt__node_is_leaf(n)) return KDRT_ERROR_INDEX_OUT_OF_RANGE; /* not reached */
+        info.axis = (int)kdrt__node_axis(n);
+        if (index >= kdrt__node_above(n)) {
             info.bounds.min[info.axis] = n->u.split;
-            at = n->bits >> 2;
+            at = kdrt__node_above(n);
         } else {
             info.bounds.max[info.axis] = n->u.split;
             at += 1;
@@ -2114,23 +2343,24 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
         info.depth += 1;
     }
     n = &tree->nodes[index];
-    if ((n->bits & 3u) == KDRT__LEAF) {
+    if (kdrt__node_is_leaf(n)) {
         info.is_leaf = 1;
         info.axis = -1;
         info.below = info.above = KDRT_INVALID_ID;
-        info.triangle_count = n->bits >> 2;
+        info.triangle_count = kdrt__node_count(n);
         info.first_reference = n->u.first_ref;
     } else {
-        info.axis = (int)(n->bits & 3u);
+        info.axis = (int)kdrt__node_axis(n);
         info.split = n->u.split;
         info.below = index + 1u;
-        info.above = n->bits >> 2;
+        info.above = kdrt__node_above(n);
     }
     *out_info = info;
     return KDRT_SUCCESS;
 }
 
-KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference, uint32_t *out_triangle)
+KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference,
+                                         uint32_t *out_triangle)
 {
     if (!tree || !out_triangle) return KDRT_ERROR_NULL_ARGUMENT;
     if ((uint64_t)reference >= tree->stats.triangle_refs) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
@@ -2143,11 +2373,12 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
     return tree ? tree->bounds : kdrt_aabb_empty();
 }
 
-/* ---- queries ---- */
+/* ==== intersection tests ==== */
 
 /* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
    that the answer does not depend on the order of the tests. */
-static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v, const kdrt__ray_setup *s)
+static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
+                        const kdrt__ray_setup *s)
 {
     if (!(t >= s->tmin && t <= best->t)) return 0;
     if (t == best->t && tri > best->triangle) return 0;
@@ -2176,7 +2407,9 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
     }
     /* In double the products of floats are exact, so each edge function is rounded once, and
        its sign is right: the two triangles of an edge get exactly opposite values, even where
-       the compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM). */
+       the compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM).
+       Written out rather than with kdrt__cross: each is a single 2D determinant of floats
+       widened to double and rounded back to float on the spot. */
     e0 = (float)((double)x[2] * y[1] - (double)y[2] * x[1]); /* edge 1-2: weight of corner 0 */
     e1 = (float)((double)x[0] * y[2] - (double)y[0] * x[2]); /* edge 2-0: weight of corner 1 */
     e2 = (float)((double)x[1] * y[0] - (double)y[1] * x[0]); /* edge 0-1: weight of corner 2 */
@@ -2190,34 +2423,32 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
 
 /* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an
    edge are computed differently, so a ray through the edge can miss both. */
-static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri, const kdrt__ray_setup *s,
-                                kdrt_hit *best)
+static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri,
+                                const kdrt__ray_setup *s, kdrt_hit *best)
 {
     const float *p[3];
     float e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
     int a;
     for (a = 0; a < 3; ++a) p[a] = vertices + 3 * (size_t)tri->v[a];
-    for (a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
-    pv[0] = s->dir[1] * e2[2] - s->dir[2] * e2[1];
-    pv[1] = s->dir[2] * e2[0] - s->dir[0] * e2[2];
-    pv[2] = s->dir[0] * e2[1] - s->dir[1] * e2[0];
+    for (a = 0; a < 3; ++a)
+        e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
+    kdrt__cross_float(s->dir, e2, pv);
     det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
     if (det == 0.0f) return 0; /* parallel to the plane */
     inv_det = 1.0f / det;
     u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv_det;
     if (!(u >= 0.0f && u <= 1.0f)) return 0;
-    qv[0] = tv[1] * e1[2] - tv[2] * e1[1];
-    qv[1] = tv[2] * e1[0] - tv[0] * e1[2];
-    qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    kdrt__cross_float(tv, e1, qv);
     v = (s->dir[0] * qv[0] + s->dir[1] * qv[1] + s->dir[2] * qv[2]) * inv_det;
     if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
     return kdrt__accept(best, tri->id, t, u, v, s);
 }
 
-#ifndef KDRT__MAILBOX
-#define KDRT__MAILBOX 32u /* a power of two */
-#endif
+/* ==== traversal ==== */
+
+#define KDRT__MAILBOX 32u /* entries; a power of two, as the traversal masks by it */
+typedef char kdrt__mailbox_is_a_power_of_two[(KDRT__MAILBOX & (KDRT__MAILBOX - 1u)) == 0 ? 1 : -1];
 
 typedef struct kdrt__todo {
     uint32_t node;
@@ -2250,14 +2481,14 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
-        uint32_t axis = n->bits & 3u;
-        if (axis != KDRT__LEAF) {
+        if (!kdrt__node_is_leaf(n)) {
+            uint32_t axis = kdrt__node_axis(n);
             float split = n->u.split, o = s.org[axis];
             KDRT__COUNT(stats, inner_nodes, 1);
             float t_split = (split - o) * s.inv_dir[axis];
             int below_first = o < split || (o == split && s.dir[axis] <= 0.0f);
-            uint32_t near_child = below_first ? node + 1 : n->bits >> 2;
-            uint32_t far_child = below_first ? n->bits >> 2 : node + 1;
+            uint32_t near_child = below_first ? node + 1 : kdrt__node_above(n);
+            uint32_t far_child = below_first ? kdrt__node_above(n) : node + 1;
             if (t_split != t_split) {
                 /* 0 * infinity: the ray lies in the plane and may hit either side's triangles. */
                 KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
@@ -2285,7 +2516,7 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
         }
         {
             const uint32_t *refs = tree->refs + n->u.first_ref;
-            uint32_t i, count = n->bits >> 2;
+            uint32_t i, count = kdrt__node_count(n);
             KDRT__COUNT(stats, leaves, 1);
             KDRT__COUNT(stats, empty_leaves, count == 0);
             for (i = 0; i < count; ++i) {
@@ -2310,7 +2541,8 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
     }
 }
 
-static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit, kdrt_traversal_stats *stats)
+static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
+                           kdrt_traversal_stats *stats)
 {
     if (!hit) return 0;
     if (!tree || !ray) {
@@ -2339,7 +2571,7 @@ KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
     return tree && ray && kdrt__traverse(tree, ray, &hit, 1, NULL);
 }
 
-/* ---- secondary rays ---- */
+/* ==== secondary rays ==== */
 
 KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
                               float normal[3])
@@ -2358,17 +2590,15 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
         /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp */
         if (point) point[a] = (float)(p[0][a] + hit->u * e1[a] + hit->v * e2[a]);
     }
-    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    kdrt__cross(e1, e2, n);
     length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (normal)
         for (a = 0; a < 3; ++a) normal[a] = length > 0.0 ? (float)(n[a] / length) : 0.0f;
     return 1;
 }
 
-KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3], const float dir[3],
-                                     float out[3])
+KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3],
+                                     const float dir[3], float out[3])
 {
     /* Waechter & Binder's constants: below 1/32 a fixed 2^-16 step, above it 256 ulps. */
     const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
@@ -2418,7 +2648,7 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
 }
 
 
-/* ---- optics: reflection, refraction, Fresnel, the medium stack ---- */
+/* ==== optics: reflection, refraction, Fresnel reflectance ==== */
 
 static int kdrt__finite_positive(float x) { return x > 0.0f && kdrt__finite(x); }
 
@@ -2430,24 +2660,24 @@ static int kdrt__load_direction(const float v[3], double d[3])
            (v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f);
 }
 
-static double kdrt__dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-static void kdrt__cross(const double a[3], const double b[3], double c[3])
+static double kdrt__dot(const double a[3], const double b[3])
 {
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
 /* cos^2 of the transmitted angle, 1 - eta^2 (1 - cos_i^2), for the Fresnel functions' float
    cosine; negative on total internal reflection. A float eta and a float cosine square exactly
    in double, and 1 - eta^2 is exact for 1 <= eta < 2^23 (below 1 there is no total internal
    reflection to decide), so with one fma the sign is exact. */
-static double kdrt__cos2_t(double eta, double cos_i) { return fma(eta * eta, cos_i * cos_i, 1.0 - eta * eta); }
+static double kdrt__cos2_t(double eta, double cos_i)
+{
+    return fma(eta * eta, cos_i * cos_i, 1.0 - eta * eta);
+}
 
 /* The unit mirror direction of i about the plane with normal n, from d = i.n, li = |i|,
    nn = |n|^2. The double intermediates cannot overflow, and the float result is a unit vector. */
-static void kdrt__mirror(const double i[3], const double n[3], double d, double li, double nn, float out[3])
+static void kdrt__mirror(const double i[3], const double n[3], double d, double li, double nn,
+                         float out[3])
 {
     double s = 2.0 * d / nn;
     int a;
@@ -2471,7 +2701,8 @@ KDRT_API int kdrt_refract(const float incident[3], const float normal[3], float 
     double i[3], n[3], w[3], t[3], d, ii, nn, li, k, e = eta;
     int a;
     if (!incident || !normal || !out) return -1;
-    if (!kdrt__load_direction(incident, i) || !kdrt__load_direction(normal, n) || !kdrt__finite_positive(eta)) {
+    if (!kdrt__load_direction(incident, i) || !kdrt__load_direction(normal, n) ||
+        !kdrt__finite_positive(eta)) {
         for (a = 0; a < 3; ++a) out[a] = incident[a];
         return -1;
     }
@@ -2548,6 +2779,8 @@ KDRT_API float kdrt_fresnel_schlick(float cos_i, float eta)
     return (float)(r0 + (1.0 - r0) * m * m * m * m * m);
 }
 
+/* ==== media stack ==== */
+
 typedef char kdrt__media_stack_has_room[KDRT_MEDIA_STACK_CAPACITY >= 1 ? 1 : -1];
 
 /* Entries to read: count, but never past the array, whatever the caller wrote into count. */
@@ -2562,7 +2795,9 @@ static uint32_t kdrt__media_current(const kdrt_media_stack *s, uint32_t skip)
 {
     uint32_t i, best = KDRT_INVALID_ID, n = kdrt__media_count(s);
     for (i = 0; i < n; ++i)
-        if (i != skip && (best == KDRT_INVALID_ID || s->media[i].priority >= s->media[best].priority)) best = i;
+        if (i != skip &&
+            (best == KDRT_INVALID_ID || s->media[i].priority >= s->media[best].priority))
+            best = i;
     return best;
 }
 
@@ -2604,7 +2839,8 @@ KDRT_API int kdrt_media_contains(const kdrt_media_stack *stack, uint32_t object)
     return stack && kdrt__media_find(stack, object) != KDRT_INVALID_ID;
 }
 
-KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior, int priority)
+KDRT_API kdrt_result kdrt_media_enter(kdrt_media_stack *stack, uint32_t object, float ior,
+                                      int priority)
 {
     kdrt_medium *m;
     if (!stack) return KDRT_ERROR_NULL_ARGUMENT;
@@ -2626,8 +2862,8 @@ KDRT_API kdrt_result kdrt_media_leave(kdrt_media_stack *stack, uint32_t object)
     return KDRT_SUCCESS;
 }
 
-KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object, float ior,
-                                                   int priority)
+KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack, uint32_t object,
+                                                   float ior, int priority)
 {
     kdrt_media_stack empty;
     kdrt_media_crossing x;
@@ -2644,7 +2880,8 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
     if (!x.real)
         x.eta_transmitted = x.eta_incident;
     else
-        x.eta_transmitted = x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
+        x.eta_transmitted =
+            x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
     return x;
 }
 
