@@ -1,4 +1,4 @@
-// The accuracy promises of kdrt.h (QUERIES AND NUMERICAL GUARANTEES) on the ray sets of
+// The accuracy promises of kdrt.h (QUERIES AND GUARANTEES) on the ray sets of
 // bench/oracle/hard_cases.hpp, which kdrt-bench --accuracy runs too:
 //  - watertightness: no ray aimed at a vertex or an edge of a closed mesh slips through it, for
 //    every builder and several leaf sizes, with the default (watertight) intersector; and

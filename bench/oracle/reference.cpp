@@ -34,6 +34,42 @@ Oracle::Oracle(const Mesh &mesh) {
         ball_x_[t] = c[0], ball_y_[t] = c[1], ball_z_[t] = c[2], ball_r2_[t] = r2 * (1 + 1e-6) + 1e-300;
     }
     scene_size_ = n ? std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6}) : 1.0;
+    // The balls in Morton order of their centres, so that a block holds neighbours whatever the
+    // mesh's own order; order_ names each one's triangle. (Non-finite centres sort last.)
+    std::vector<uint64_t> key(n);
+    for (uint32_t t = 0; t < n; ++t) {
+        uint64_t code = 0;
+        const double c[3] = {ball_x_[t], ball_y_[t], ball_z_[t]};
+        for (int bit = 9; bit >= 0; --bit)
+            for (int a = 0; a < 3; ++a) {
+                const double f = (c[a] - lo[a]) / std::max(hi[a] - lo[a], 1e-300);
+                const uint64_t cell = f >= 0 && f <= 1 ? std::min<uint64_t>(1023, uint64_t(f * 1024)) : 1023;
+                code = code << 1 | (cell >> bit & 1);
+            }
+        key[t] = std::isfinite(c[0] + c[1] + c[2]) ? code << 32 | t : ~uint64_t(0) << 32 | t;
+    }
+    std::sort(key.begin(), key.end());
+    order_.assign(padded, 0);
+    std::vector<double> x = ball_x_, y = ball_y_, z = ball_z_, r2 = ball_r2_;
+    for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t t = uint32_t(key[k]);
+        order_[k] = t, ball_x_[k] = x[t], ball_y_[k] = y[t], ball_z_[k] = z[t], ball_r2_[k] = r2[t];
+    }
+    // Each block's ball: centred on its balls' mean centre, reaching the far side of each. A
+    // non-finite triangle makes its block's ball NaN, which no line is found to miss.
+    const size_t blocks = padded / kBallBlock;
+    block_x_.assign(blocks, 0), block_y_.assign(blocks, 0), block_z_.assign(blocks, 0), block_r2_.assign(blocks, 0);
+    for (size_t b = 0; b < blocks; ++b) {
+        const size_t begin = b * kBallBlock, end = std::min(size_t(n), begin + kBallBlock);
+        double c[3] = {0, 0, 0}, r = 0;
+        for (size_t j = begin; j < end; ++j) c[0] += ball_x_[j], c[1] += ball_y_[j], c[2] += ball_z_[j];
+        for (double &x : c) x /= double(end - begin);
+        for (size_t j = begin; j < end; ++j) {
+            const double dx = ball_x_[j] - c[0], dy = ball_y_[j] - c[1], dz = ball_z_[j] - c[2];
+            r = std::max(r, std::sqrt(dx * dx + dy * dy + dz * dz) + std::sqrt(ball_r2_[j]));
+        }
+        block_x_[b] = c[0], block_y_[b] = c[1], block_z_[b] = c[2], block_r2_[b] = r * r * (1 + 1e-6);
+    }
 }
 
 double Oracle::t_tolerance(const kdrt_ray &ray, double t) const {
@@ -103,13 +139,21 @@ Reference Oracle::trace(const kdrt_ray &ray) const {
     const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     double tmin = std::max(0.0, double(ray.tmin)), tmax = ray.tmax;
     const size_t n = tri_.size() / 9;
-    // Still every triangle, but in blocks: first a cheap test that the ray's line meets the
+    // Still every triangle, but in blocks: first whether the ray's line meets the block's ball,
+    // then for each triangle of a block it meets a cheap test that the line meets the
     // triangle's ball (|(c - o) x d|^2 <= r^2 |d|^2, a loop the compiler vectorises), then the
     // exact double-precision test for the few that pass. A sure hit lies strictly inside its
     // triangle, hence strictly inside the ball, so the cheap test never rejects one.
     const double o0 = o[0], o1 = o[1], o2 = o[2], d0 = d[0], d1 = d[1], d2 = d[2];
     double outside[kBallBlock];  // > 0: the line misses the ball (a double, so the loop vectorises)
     for (size_t begin = 0; begin < n; begin += kBallBlock) {
+        {  // The block's ball first, with a slack far above the rounding of |v x d|^2.
+            const size_t b = begin / kBallBlock;
+            const double vx = block_x_[b] - o0, vy = block_y_[b] - o1, vz = block_z_[b] - o2;
+            const double cx = vy * d2 - vz * d1, cy = vz * d0 - vx * d2, cz = vx * d1 - vy * d0;
+            const double slack = 1e-12 * (vx * vx + vy * vy + vz * vz) * dd;
+            if (cx * cx + cy * cy + cz * cz - block_r2_[b] * dd > slack) continue;
+        }
         const double *bx = &ball_x_[begin], *by = &ball_y_[begin], *bz = &ball_z_[begin], *br2 = &ball_r2_[begin];
         for (size_t j = 0; j < kBallBlock; ++j) {  // the arrays are padded to whole blocks
             double vx = bx[j] - o0, vy = by[j] - o1, vz = bz[j] - o2;
@@ -118,12 +162,13 @@ Reference Oracle::trace(const kdrt_ray &ray) const {
         }
         for (size_t j = 0; j < kBallBlock && begin + j < n; ++j) {
             if (outside[j] > 0) continue;
-            const size_t i = begin + j;
+            const size_t i = order_[begin + j];
             // Sure: clear of the edges, of the range ends, and not grazing (where the float
             // test's barycentrics lose their accuracy).
             double t, det, b1, b2;
             if (!plane_hit(&tri_[i * 9], o, d, kEdgeMargin, t, det, b1, b2)) continue;
-            if (ref.sure_hit && !(t < ref.sure_t)) continue;  // the lower index keeps a tie
+            // The lower index keeps a tie (the balls are not in index order).
+            if (ref.sure_hit && !(t < ref.sure_t || (t == ref.sure_t && i < ref.sure_triangle))) continue;
             double margin = edge_margin(&tri_[i * 9], o, d, det);
             if (b1 < margin || b2 < margin || 1 - b1 - b2 < margin) continue;
             double tol = t_tolerance(ray, t);

@@ -56,6 +56,11 @@ private:
     // Padded to whole blocks with balls of radius^2 -1, which every line misses.
     static constexpr size_t kBallBlock = 256;
     std::vector<double> ball_x_, ball_y_, ball_z_, ball_r2_;
+    // The balls lie in Morton order of their centres; order_[k] is ball k's triangle.
+    std::vector<uint32_t> order_;
+    // Per block of kBallBlock balls (neighbours, in that order): a ball holding them, so that a
+    // line that misses it skips them all.
+    std::vector<double> block_x_, block_y_, block_z_, block_r2_;
     double scene_size_ = 1;
 };
 
