@@ -1,10 +1,9 @@
 #!/usr/bin/python3
 """Prints bench/README.md's table of kdrt's SAH builder against Embree and the median builder, from
-the CSVs kdrt-bench writes with --builder median,sah --compare embree, and which of the bench's
-targets the figures meet.
+the CSVs kdrt-bench writes with --builder median,sah --compare embree.
 
 usage: bench/bench_table.py --primary CSV [CSV ...] --diffuse CSV [CSV ...]
-                            [--leaf-size N] [--sah-costs KT:KI:EB] [--target-meshes LIST]
+                            [--leaf-size N] [--sah-costs KT:KI:EB]
 
 --primary takes the CSVs of primary-ray runs (kdrt-bench without --rays), --diffuse those of
 --rays diffuse runs; a mesh may appear in either or both. Per mesh, the SAH and median rows of one
@@ -20,26 +19,16 @@ built in each). Columns:
   Primary, Diffuse     MRays/s SAH / Embree (SAH over Embree), one thread
   SAH over median      the SAH tree's MRays/s over the median tree's, primary / diffuse
   Mismatches           summed over every row used (SAH, median and Embree, both kinds)
-
-Under the table, a line says which of the bench's targets are met: traversal at least 0.5
-times Embree's MRays/s on primary and on diffuse rays and a build at most 3 times Embree's, on
-the target meshes (default: STANFORD-BUNNY, OGRE and every mesh of a million triangles or
-more); at most 80 bytes per triangle on every mesh of at least 1,000 triangles
-(below that the tree's fixed header, about 200 bytes, dominates: 107 bytes per triangle for
-a 3-triangle mesh says nothing of the layout), and no mismatch on every mesh.
 """
 import argparse
 import os
 
-MEMORY_MIN_TRIANGLES = 1000  # smaller meshes: the tree's fixed header dominates bytes per triangle
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from plot_bench import median_by, read_rows  # noqa: E402  (the same reading and repetition rule)
 
 TOOL = "bench_table"
-DEFAULT_TARGET_MESHES = ("STANFORD-BUNNY", "OGRE")
-BIG_MESH = 1_000_000
 
 
 def load(paths, kind):
@@ -161,64 +150,6 @@ def markdown(summary):
     return "\n".join(lines)
 
 
-def is_target(s, target_meshes):
-    if target_meshes is None:
-        return s["mesh"] in DEFAULT_TARGET_MESHES or s["triangles"] >= BIG_MESH
-    return target_meshes == ["all"] or s["mesh"] in target_meshes
-
-
-def targets(summary, target_meshes):
-    """One line: each of the bench's targets, met or missed, with the worst figure and its mesh."""
-    chosen = [s for s in summary if is_target(s, target_meshes)]
-    # Target meshes the CSVs lack: no figure, so their targets cannot be shown to be met.
-    if target_meshes is None:
-        absent = [m for m in DEFAULT_TARGET_MESHES if m not in {s["mesh"] for s in chosen}]
-        if not any(s["triangles"] >= BIG_MESH for s in chosen):
-            absent.append("a mesh of 1M+ triangles")
-    else:
-        absent = [m for m in target_meshes if m != "all" and m not in {s["mesh"] for s in chosen}]
-    names = ", ".join(s["mesh"] for s in chosen) or "none found"
-    parts, met = [], 0
-
-    def judge(label, figures, ok, worst_of, fmt, every_mesh_needed):
-        """figures: (value or None, mesh) per mesh. A target mesh without its figure fails the
-        target (it is not shown to be met); elsewhere an unmeasured mesh is only noted."""
-        nonlocal met
-        measured = [(v, m) for v, m in figures if v is not None]
-        missing = [m for v, m in figures if v is None]
-        if not measured:
-            parts.append(f"{label}: not measured")
-            return
-        worst_v, worst_m = worst_of(measured, key=lambda p: p[0])
-        good = all(ok(v) for v, _ in measured) and not (missing and every_mesh_needed)
-        met += good
-        text = f"{label}: {'met' if good else 'missed'} (worst {fmt(worst_v)}, {worst_m})"
-        if missing:
-            text += f", not measured for {', '.join(missing)}"
-        parts.append(text)
-
-    unmeasured = [(None, m) for m in absent]
-    for kind in ("primary", "diffuse"):
-        judge(f"{kind} >= 0.5x Embree",
-              [(ratio(s["mrays"][(kind, "sah")], s["mrays"][(kind, "embree")]), s["mesh"]) for s in chosen] + unmeasured,
-              lambda v: v >= 0.5, min, lambda v: f"{v:.2f}x", True)
-    judge("build <= 3x Embree",
-          [(ratio(s["build_ms"]["sah"], s["build_ms"]["embree"]), s["mesh"]) for s in chosen] + unmeasured,
-          lambda v: v <= 3, max, lambda v: f"{v:.1f}x", True)
-    judge("<= 80 bytes/triangle", [(s["bytes_per_triangle"], s["mesh"]) for s in summary if s["triangles"] >= MEMORY_MIN_TRIANGLES],
-          lambda v: v <= 80, max, lambda v: f"{v:.0f}", False)
-    mismatches = sum(s["mismatches"] for s in summary)
-    rows = sum(s["rows"] for s in summary)
-    if mismatches == 0:
-        met += 1
-        parts.append(f"0 mismatches: met (0 on all {rows} rows)")
-    else:
-        bad = ", ".join(f"{s['mesh']} {s['mismatches']}" for s in summary if s["mismatches"])
-        parts.append(f"0 mismatches: missed ({mismatches} in {rows} rows: {bad})")
-    return (f"Targets: {met} of 5 met (traversal and build on {names}; memory on every mesh of "
-            f"{MEMORY_MIN_TRIANGLES:,} triangles or more; mismatches on every mesh): " + "; ".join(parts) + ".")
-
-
 def add_input_arguments(parser):
     """The options that say which CSVs and rows to read (bench/plot_speed.py takes them too)."""
     parser.add_argument("--primary", nargs="+", required=True, metavar="CSV", help="kdrt-bench CSVs of primary rays")
@@ -233,9 +164,6 @@ def parse_args(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
                                      epilog=__doc__.split("\n\n", 2)[2])
     add_input_arguments(parser)
-    parser.add_argument("--target-meshes", metavar="LIST",
-                        help="comma-separated meshes (CSV names) the traversal and build targets apply to, or 'all' "
-                             "(default: STANFORD-BUNNY, OGRE and meshes of 1,000,000 triangles or more)")
     return parser.parse_args(argv)
 
 
@@ -253,10 +181,8 @@ def main():
     args = parse_args()
     summary, costs = load_summary(args)
     print(markdown(summary))
-    print()
-    target_meshes = args.target_meshes.split(",") if args.target_meshes else None
-    print(targets(summary, target_meshes))
     if costs:
+        print()
         print(f"(SAH rows: SahCosts {costs}, max leaf size {args.leaf_size}.)")
 
 
