@@ -214,9 +214,10 @@ bool same_answer(const kdrt_hit &a, const kdrt_hit &b) {
 void skip_test(const std::string &why) { WARN("kdrt test skipped: " << why); }
 
 size_t brute_force_rays(size_t ray_count, uint32_t triangles) {
-    const double budget = kBruteForceTests * double(ray_count) / 100000.0;
-    const size_t fits = size_t(budget / std::max(1u, triangles));
-    return std::min(ray_count, std::max<size_t>(2000, fits));
+    const double scale = double(ray_count) / 100000.0;
+    const size_t fits = size_t(kBruteForceTests * scale / std::max(1u, triangles));
+    const size_t floor = std::max<size_t>(100, size_t(2000 * scale));
+    return std::min(ray_count, std::max(floor, fits));
 }
 
 void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed) {

@@ -85,8 +85,9 @@ constexpr uint32_t kSahLeafSizes[] = {1, 4, 16};
 void check_scene(const common::Mesh &mesh, size_t ray_count, uint32_t seed);
 
 // How many of ray_count rays leaf size 0 traces on a mesh of `triangles`: all of them while that
-// takes at most kBruteForceTests triangle tests (scaled by ray_count / 100,000, so that
-// KDRT_TEST_RAYS shortens it as it shortens the rest), else as many as fit, at least 2,000.
+// takes at most kBruteForceTests triangle tests, else as many as fit, at least 2,000; budget and
+// floor scale with ray_count / 100,000, so that KDRT_TEST_RAYS shortens this as it shortens the
+// rest (the floor not below 100 rays).
 constexpr double kBruteForceTests = 1e8;
 size_t brute_force_rays(size_t ray_count, uint32_t triangles);
 
