@@ -6,6 +6,7 @@
 // components to float moves a unit vector by at most about 2^-24 rad; the double arithmetic on
 // either side adds at most about 1e-8 rad, even near the critical angle where cos(theta_t) comes
 // out of a square root of a number close to 0.
+#include "common/random.hpp"
 #include "test_support.hpp"
 
 #include <catch2/catch.hpp>
@@ -17,7 +18,6 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
-#include <random>
 #include <vector>
 
 namespace {
@@ -70,14 +70,12 @@ void to_float(const V &v, float f[3]) {
 }
 
 // A random unit vector, and a random unit vector perpendicular to it.
-V random_unit(std::mt19937 &rng) {
-    std::normal_distribution<double> g;
-    for (;;) {
-        V v{{g(rng), g(rng), g(rng)}};
-        if (norm(v) > 1e-3) return unit(v);
-    }
+V random_unit(common::Rng &rng) {
+    V v;
+    rng.direction(v.data());
+    return v;
 }
-V random_perpendicular(const V &n, std::mt19937 &rng) {
+V random_perpendicular(const V &n, common::Rng &rng) {
     for (;;) {
         V v = random_unit(rng);
         V p = plus(v, scaled(n, -dot(v, n)));
@@ -121,8 +119,7 @@ bool exact_tir_wide(float eta, float s, float t) {
 }  // namespace
 
 TEST_CASE("optics: refraction matches Snell's law in double at every angle of incidence", "[optics]") {
-    std::mt19937 rng(20260131);
-    std::uniform_real_distribution<double> length(0.25, 8.0);
+    common::Rng rng(20260131);
     const int angles = 1000, normals = 48;
     double worst = 0.0;
     long cases = 0, tir = 0, either = 0;
@@ -132,7 +129,7 @@ TEST_CASE("optics: refraction matches Snell's law in double at every angle of in
             // The first normal is the z axis, the rest random; random lengths, either orientation.
             V n = k == 0 ? V{{0, 0, 1}} : random_unit(rng);
             V u = k == 0 ? V{{1, 0, 0}} : random_perpendicular(n, rng);
-            double n_length = k == 0 ? 1.0 : length(rng), i_length = k == 0 ? 1.0 : length(rng);
+            double n_length = k == 0 ? 1.0 : rng.range(0.25, 8.0), i_length = k == 0 ? 1.0 : rng.range(0.25, 8.0);
             float normal[3];
             to_float(scaled(n, (k & 1) ? -n_length : n_length), normal);
             std::vector<double> thetas;
@@ -222,11 +219,10 @@ TEST_CASE("optics: total internal reflection exactly at and one ulp around the c
         }
     }
     SECTION("2,000 random etas: the floats t nearest the critical t* = sqrt(eta^2 - 1) and 3 ulps around") {
-        std::mt19937 rng(7);
-        std::uniform_real_distribution<float> etas(1.001f, 4.0f);
+        common::Rng rng(7);
         int decided = 0, reflected = 0;
         for (int k = 0; k < 2000; ++k) {
-            float eta = etas(rng);
+            float eta = float(rng.range(1.001, 4.0));
             float t = static_cast<float>(std::sqrt(static_cast<double>(eta) * eta - 1.0));
             for (int s = 0; s < 3; ++s) t = std::nextafter(t, 0.0f);
             for (int s = 0; s < 7; ++s, t = std::nextafter(t, 100.0f)) {
@@ -247,7 +243,7 @@ TEST_CASE("optics: total internal reflection exactly at and one ulp around the c
 }
 
 TEST_CASE("optics: normal incidence goes straight through, and eta = 1 changes nothing", "[optics]") {
-    std::mt19937 rng(3);
+    common::Rng rng(3);
     for (float eta : sweep_etas()) {
         // Along an axis the result is exact.
         const float down[3] = {0, 0, -1}, up[3] = {0, 0, 1};
@@ -280,7 +276,7 @@ TEST_CASE("optics: refracting back returns the original direction", "[optics]") 
     // first trip's rounding is magnified on the way back by d(theta_i)/d(theta_t) =
     // cos(theta_t) / (eta cos(theta_i)), and a float 1/eta is off by up to 2^-24, which moves
     // theta_i by tan(theta_i) times that.
-    std::mt19937 rng(11);
+    common::Rng rng(11);
     const float etas[] = {0.5f, 2.0f, 1.0f / 1.5f, 1.5f, 1.0f / 1.333f, 1.333f};
     int checked = 0;
     for (float eta : etas) {
@@ -319,7 +315,7 @@ TEST_CASE("optics: reflection mirrors about the normal, whichever way it faces",
     kdrt_reflect(incident, down, out);
     CHECK((out[0] == 0.6f && out[1] == 0.8f && out[2] == 0));
     // In place, and what kdrt_refract writes on total internal reflection, bit for bit.
-    std::mt19937 rng(5);
+    common::Rng rng(5);
     for (int k = 0; k < 1000; ++k) {
         float normal[3], dir[3], mirror[3], refracted[3];
         to_float(random_unit(rng), normal);
@@ -673,7 +669,7 @@ TEST_CASE("media: through parallel slabs of water and glass the ray leaves as it
     const float up[3] = {0, 0, 1};
     const uint32_t faces[] = {water, plate, plate, water};
     const float iors[] = {0, kWater, kGlass};
-    std::mt19937 rng(17);
+    common::Rng rng(17);
     for (int k = 0; k < 500; ++k) {
         V u = random_perpendicular(V{{0, 0, 1}}, rng);
         double theta = (80.0 * kPi / 180.0) * k / 500;
