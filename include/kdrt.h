@@ -2515,16 +2515,17 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
             continue;
         }
         {
-            const uint32_t *refs = tree->refs + n->u.first_ref;
-            uint32_t i, count = kdrt__node_count(n);
+            /* Indexed, not a pointer formed up front: an empty tree has no refs array at all. */
+            uint32_t i, first = n->u.first_ref, count = kdrt__node_count(n);
             KDRT__COUNT(stats, leaves, 1);
             KDRT__COUNT(stats, empty_leaves, count == 0);
             for (i = 0; i < count; ++i) {
-                const kdrt__triangle *tri = tree->triangles + refs[i];
-                uint32_t *box = &tested[refs[i] & (KDRT__MAILBOX - 1u)];
+                const uint32_t ref = tree->refs[first + i];
+                const kdrt__triangle *tri = tree->triangles + ref;
+                uint32_t *box = &tested[ref & (KDRT__MAILBOX - 1u)];
                 int found;
-                if (*box == refs[i]) continue;
-                *box = refs[i];
+                if (*box == ref) continue;
+                *box = ref;
                 KDRT__COUNT(stats, triangle_tests, 1);
                 found = tree->watertight ? kdrt__intersect_watertight(tree->vertices, tri, &s, best)
                                          : kdrt__intersect_fast(tree->vertices, tri, &s, best);

@@ -549,6 +549,40 @@ TEST_CASE("errors: zero triangles is a valid empty tree", "[errors]") {
         }
 }
 
+// A tree whose triangles are all zero-area or skipped has a box but no references at all: rays
+// through that box reach its one empty leaf (Clang's UBSan once caught the traversal forming a
+// pointer into the missing reference array there).
+TEST_CASE("errors: a tree of only degenerate or skipped triangles answers rays through its box", "[errors]") {
+    const float v[] = {0, 0, 0, 1, 0, 0, 2, 0, 0, 0, 1, NAN};  // a collinear triangle, then a NaN corner
+    const uint32_t collinear[] = {0, 1, 2}, with_nan[] = {0, 1, 3};
+    const kdrt_ray rays[] = {{{-1, -1, -1}, 0, {1, 1, 1}, INFINITY},  // through (0, 0, 0)
+                             {{0.5f, 0, -1}, 0, {0, 0, 1}, INFINITY},
+                             {{-1, 0, 0}, 0, {1, 0, 0}, INFINITY}};  // along the triangle
+    for (const uint32_t *indices : {collinear, with_nan})
+        for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+            for (uint32_t leaf : kLeafSizes) {
+                INFO((indices == collinear ? "collinear" : "NaN corner, skipped") << ", builder " << int(builder)
+                                                                                 << ", leaf size " << leaf);
+                kdrt_triangles m{};
+                m.positions = v, m.vertex_count = 4, m.indices = indices, m.triangle_count = 1;
+                kdrt_build_options o = options_with_leaf(leaf);
+                o.builder = builder;
+                o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+                kdrt_tree *tree;
+                REQUIRE(try_build(m, o, &tree) == KDRT_SUCCESS);
+                kt::TreePtr owner(tree);
+                kdrt_tree_stats stats;
+                kdrt_tree_get_stats(tree, &stats);
+                CHECK(stats.triangle_refs == 0);
+                for (const kdrt_ray &r : rays) {
+                    kdrt_hit h;
+                    CHECK(kdrt_intersect(tree, &r, &h) == 0);
+                    CHECK(h.triangle == KDRT_INVALID_ID);
+                    CHECK(kdrt_occluded(tree, &r) == 0);
+                }
+            }
+}
+
 TEST_CASE("errors: kdrt_result_string names every code distinctly", "[errors]") {
     std::set<std::string> seen;
     for (int code = KDRT_SUCCESS; code <= KDRT_ERROR_OUT_OF_MEMORY; ++code) {
