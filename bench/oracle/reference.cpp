@@ -33,7 +33,9 @@ Oracle::Oracle(const Mesh &mesh) {
         }
         ball_x_[t] = c[0], ball_y_[t] = c[1], ball_z_[t] = c[2], ball_r2_[t] = r2 * (1 + 1e-6) + 1e-300;
     }
-    scene_size_ = n ? std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-6}) : 1.0;
+    // The scene's size sets the tolerances: relative, so that they mean the same at any scale.
+    scene_size_ = n ? std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}) : 1.0;
+    if (!(scene_size_ > 0)) scene_size_ = 1.0;  // every vertex in one point: t alone sets them
     // The balls in Morton order of their centres, so that a block holds neighbours whatever the
     // mesh's own order; order_ names each one's triangle. (Non-finite centres sort last.)
     std::vector<uint64_t> key(n);
