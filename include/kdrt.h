@@ -47,9 +47,11 @@
                                  by the exact sweep, larger ones by the binned one: 0 to
                                  4294967295, default 128 (the top levels a parallel build
                                  splits before its tasks are binned whatever the value)
-     KDRT_SAH_BINS and KDRT_SAH_EXACT_MAX exist to measure the choice: the defaults are the
-     measured best, and any value in range builds a valid tree, if not the same one. A value out
-     of range stops the compilation with an #error.
+       KDRT_SAH_REFERENCE_BUDGET the most triangle references a SAH tree holds per triangle
+                                 (THE TREE): 1 to 64, default 8
+     These three exist to measure the choice: the defaults are the measured best, and any value
+     in range builds a valid tree, if not the same one. A value out of range stops the
+     compilation with an #error.
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -101,9 +103,12 @@
          hits at least one of them, even exactly through an edge or a vertex: no ray slips
          through a closed mesh. This holds whatever the compiler fuses into FMAs (-march=native,
          -ffp-contract=fast, Clang on ARM): the edge functions are formed in double, where the
-         products of floats are exact.
+         products of floats are exact. Being in double, they also keep their range: scenes
+         from 1e-30 to 1e30 across are traced as at 1.
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
-         an edge or vertex can pass between the triangles sharing it.
+         an edge or vertex can pass between the triangles sharing it. It computes in float,
+         where its products of up to three lengths overflow or underflow outside scenes of about
+         1e-9 to 1e12 across: there it misses.
      A ray lying exactly in a triangle's plane and meeting it may hit it or miss it: the
      watertight test shears with a rounded dir ratio, which turns the triangle seen edge-on into
      a sliver, and that freedom is what keeps a ray leaving a closed mesh through an edge of such
@@ -144,9 +149,21 @@
      the triangles it cuts are made again and sorted.
      A triangle cut by the plane is clipped to the node's box and that polygon split by the
      plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when
-     it holds at most max_leaf_size triangles, at max_depth, or when no split is cheaper than
-     testing all its triangles (the costs are options). It is the default (KDRT_BUILDER_DEFAULT
-     and kdrt_default_build_options()).
+     it holds at most max_leaf_size triangles, at max_depth, or when no split within its
+     reference budget is cheaper than testing all its triangles (the costs are options). It is
+     the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
+     Reference budget: a triangle a plane cuts is referred to on both sides, and some inputs (a
+     fan of triangles round one vertex, crossing slivers) would multiply references without
+     end. The root's budget is KDRT_SAH_REFERENCE_BUDGET (8) references a triangle; a split is
+     made only if its children hold at most their node's budget together, and they share it in
+     proportion to what each holds. So every level of the tree holds at most 8 n references
+     (n: the triangles in the tree), which bounds the build whatever the input: the tree's
+     references at most 8 n (32 bytes a triangle), its nodes at most 12 n a level; the build's
+     working references at most 8 n at any moment (28 bytes each, plus the sorted events of at
+     most max_depth nodes of at most KDRT_SAH_EXACT_MAX references); and O(n) work a level,
+     sorts included (long ones are radix sorts), over at most max_depth levels: O(n log n)
+     with the default max_depth. Ordinary meshes need 2.5 to 4.5 references a triangle: the
+     budget binds only in a few deep nodes there.
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread; the subtrees below, at most 64, are independent tasks handed
      to options.scheduler, then joined in depth-first order. The cut depends only on the input,
@@ -599,6 +616,12 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #endif
 #if KDRT_SAH_EXACT_MAX < 0 || KDRT_SAH_EXACT_MAX > 0xFFFFFFFF
 #error "kdrt: KDRT_SAH_EXACT_MAX must be 0 to 4294967295"
+#endif
+#ifndef KDRT_SAH_REFERENCE_BUDGET
+#define KDRT_SAH_REFERENCE_BUDGET 8u
+#endif
+#if KDRT_SAH_REFERENCE_BUDGET < 1 || KDRT_SAH_REFERENCE_BUDGET > 64
+#error "kdrt: KDRT_SAH_REFERENCE_BUDGET must be 1 to 64"
 #endif
 
 #ifdef __cplusplus
@@ -1325,8 +1348,8 @@ static float kdrt__event_pos(uint64_t event)
 }
 
 /* Quicksort (median of three, the larger part deferred so the stack stays log2 n deep) with
-   insertion sort for short runs. The keys are totally ordered, so any sort gives one result. */
-static void kdrt__sort_keys(uint64_t *a, size_t n)
+   insertion sort for short runs, for short arrays: its worst case, quadratic, is then bounded. */
+static void kdrt__quicksort_keys(uint64_t *a, size_t n)
 {
     size_t stack[2 * 64], sp = 0, lo = 0, hi = n, i, j;
     uint64_t t, pivot;
@@ -1359,52 +1382,94 @@ static void kdrt__sort_keys(uint64_t *a, size_t n)
     }
 }
 
+#define KDRT__QUICKSORT_MAX 256u /* longer arrays are radix sorted: linear, whatever the input */
+
+/* Sorts the keys, in O(n) for long arrays (least significant byte first, a pass per byte in
+   which the keys differ; scratch from the arena), so that no input can make a build quadratic.
+   The keys are totally ordered, so either sort gives the one result. */
+static kdrt_result kdrt__sort_keys(kdrt__arena *arena, uint64_t *a, size_t n)
+{
+    kdrt__mark mark;
+    uint64_t *from = a, *to;
+    size_t count[256], i, sum;
+    unsigned shift;
+    if (n <= KDRT__QUICKSORT_MAX) {
+        kdrt__quicksort_keys(a, n);
+        return KDRT_SUCCESS;
+    }
+    mark = kdrt__arena_mark(arena);
+    to = (uint64_t *)kdrt__arena_alloc(arena, n * sizeof(uint64_t));
+    if (!to) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (shift = 0; shift < 64; shift += 8) {
+        memset(count, 0, sizeof count);
+        for (i = 0; i < n; ++i) ++count[(from[i] >> shift) & 255u];
+        if (count[(from[0] >> shift) & 255u] == n) continue; /* one byte value: nothing moves */
+        for (i = 0, sum = 0; i < 256; ++i) {
+            size_t c = count[i];
+            count[i] = sum, sum += c;
+        }
+        for (i = 0; i < n; ++i) to[count[(from[i] >> shift) & 255u]++] = from[i];
+        { uint64_t *t = from; from = to, to = t; }
+    }
+    if (from != a) memcpy(a, from, n * sizeof(uint64_t));
+    kdrt__arena_release(arena, mark);
+    return KDRT_SUCCESS;
+}
+
 /* ==== SAH sweep: costing candidate planes, exact and binned ==== */
 
 typedef struct kdrt__plane {
     int axis; /* -1: no split beats a leaf */
     float pos;
     int planar_below; /* triangles lying in the plane go below (1) or above (0) */
-    float cost;
+    double cost;
 } kdrt__plane;
 
-/* What costing planes on one axis of a node needs, worked out once per axis. */
+/* What costing planes on one axis of a node needs, worked out once per axis. Costs are computed
+   in double: float areas overflow beyond coordinates of about 1e19 (and lose their low bits to
+   subnormals below 1e-19), while double holds every product of two floats, so a mesh scaled by
+   a power of two gets the same costs scaled, and the same tree. */
 typedef struct kdrt__axis_cost {
     int k;
-    float lo, hi;         /* the node's extent on the axis */
-    float cap, side;      /* the child boxes' areas are (cap + length * side) / ... */
-    float inv_area;       /* ... over the node's half area */
-    float trav, isect, isect_empty; /* SAH constants; isect_empty with the empty bonus */
+    float lo, hi;          /* the node's extent on the axis */
+    double cap, side;      /* the child boxes' areas are (cap + length * side) / ... */
+    double inv_area;       /* ... over the node's half area */
+    double trav, isect, isect_empty; /* SAH constants; isect_empty with the empty bonus */
+    uint32_t budget;       /* the most references the children may hold together */
 } kdrt__axis_cost;
 
 static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const float lo[3],
-                                        const float hi[3], float inv_area)
+                                        const float hi[3], double inv_area, uint32_t budget)
 {
     kdrt__axis_cost c;
     int k1 = k == 2 ? 0 : k + 1, k2 = k == 0 ? 2 : k - 1;
-    float d1 = hi[k1] - lo[k1], d2 = hi[k2] - lo[k2];
+    double d1 = (double)hi[k1] - lo[k1], d2 = (double)hi[k2] - lo[k2];
     c.k = k, c.lo = lo[k], c.hi = hi[k], c.cap = d1 * d2, c.side = d1 + d2, c.inv_area = inv_area;
     c.trav = b->sah_trav, c.isect = b->sah_isect,
-    c.isect_empty = b->sah_isect * (1.0f - b->sah_empty_bonus);
+    c.isect_empty = b->sah_isect * (1.0 - (double)b->sah_empty_bonus);
+    c.budget = budget;
     return c;
 }
 
 /* Costs the plane pos with below, planars and above triangles on its sides, planars going
-   either way, and keeps it in best if cheaper. */
+   either way, and keeps it in best if cheaper. Triangles the plane cuts are counted on both
+   sides, so below + planars + above is what the children would hold: over the budget, the plane
+   is not a candidate. */
 static void kdrt__consider(const kdrt__axis_cost *c, kdrt__plane *best, float pos, uint32_t below,
                            uint32_t planars, uint32_t above)
 {
-    float p_below, p_above, scale, cost;
+    double p_below, p_above, scale, cost;
     if (!(pos > c->lo && pos < c->hi)) return; /* a plane on the box's face separates nothing */
-    p_below = (c->cap + (pos - c->lo) * c->side) * c->inv_area;
-    p_above = (c->cap + (c->hi - pos) * c->side) * c->inv_area;
+    if ((uint64_t)below + planars + above > c->budget) return;
+    p_below = (c->cap + ((double)pos - c->lo) * c->side) * c->inv_area;
+    p_above = (c->cap + ((double)c->hi - pos) * c->side) * c->inv_area;
     scale = (below + planars == 0 || above == 0) ? c->isect_empty : c->isect;
-    cost = c->trav + scale * (p_below * (float)(below + planars) + p_above * (float)above);
+    cost = c->trav + scale * (p_below * (double)(below + planars) + p_above * (double)above);
     if (cost < best->cost)
         best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
     if (planars == 0) return; /* the same plane again: no better */
     scale = (below == 0 || above + planars == 0) ? c->isect_empty : c->isect;
-    cost = c->trav + scale * (p_below * (float)below + p_above * (float)(above + planars));
+    cost = c->trav + scale * (p_below * (double)below + p_above * (double)(above + planars));
     if (cost < best->cost)
         best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
 }
@@ -1466,7 +1531,8 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
         out->count[k] = 0;
         for (r = 0; r < n; ++r)
             out->count[k] += kdrt__push_events(&refs[r], r, k, out->axis[k] + out->count[k]);
-        kdrt__sort_keys(out->axis[k], out->count[k]);
+        if (kdrt__sort_keys(arena, out->axis[k], out->count[k]) != KDRT_SUCCESS)
+            return KDRT_ERROR_OUT_OF_MEMORY;
     }
     return KDRT_SUCCESS;
 }
@@ -1475,8 +1541,8 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
    in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
 
 static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
-                               const float lo[3], const float hi[3], float inv_area,
-                               kdrt__plane *best)
+                               const float lo[3], const float hi[3], double inv_area,
+                               uint32_t budget, kdrt__plane *best)
 {
     const uint32_t bins = KDRT_SAH_BINS;
     uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS], r, i;
@@ -1496,7 +1562,7 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
         uint32_t below = 0, ended = 0;
         kdrt__axis_cost cost;
         if (scale[k] == 0.0f) continue;
-        cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
+        cost = kdrt__axis_setup(b, k, lo, hi, inv_area, budget);
         for (i = 1; i < bins; ++i) {
             below += starts[k][i - 1], ended += ends[k][i - 1];
             kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below,
@@ -1507,10 +1573,10 @@ static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, ui
 
 /* ==== SAH node: choosing the plane, splitting references and events ==== */
 
-static float kdrt__half_area(const float lo[3], const float hi[3])
+static double kdrt__half_area(const float lo[3], const float hi[3])
 {
-    return (hi[0] - lo[0]) * (hi[1] - lo[1]) + (hi[1] - lo[1]) * (hi[2] - lo[2]) +
-           (hi[2] - lo[2]) * (hi[0] - lo[0]);
+    double dx = (double)hi[0] - lo[0], dy = (double)hi[1] - lo[1], dz = (double)hi[2] - lo[2];
+    return dx * dy + dy * dz + dz * dx;
 }
 
 /* Which side of the plane a reference lies on: KDRT__SIDE_BELOW, _ABOVE, or both when the plane
@@ -1571,6 +1637,20 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
     return KDRT_SUCCESS;
 }
 
+/* The reference budget: a node's subtree may hold at most `budget` references at any depth (the
+   root's is KDRT_SAH_REFERENCE_BUDGET per triangle). A split is made only when its children hold
+   at most that many together; they then share it in proportion to what each holds, so each
+   child's budget covers its own references and the two add up to no more than their parent's.
+   Every level of the tree, the leaves included, holds at most the root's budget. */
+static int kdrt__share_budget(uint32_t budget, const uint32_t count[2], uint32_t out[2])
+{
+    uint64_t total = (uint64_t)count[0] + count[1];
+    int c;
+    if (total > budget) return 0;
+    for (c = 0; c < 2; ++c) out[c] = total ? (uint32_t)((uint64_t)budget * count[c] / total) : 0;
+    return 1;
+}
+
 static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__plane *plane,
                               float child_lo[2][3], float child_hi[2][3])
 {
@@ -1582,38 +1662,38 @@ static void kdrt__child_boxes(const float lo[3], const float hi[3], const kdrt__
 
 /* Every candidate on the three axes, from a node's sorted events. */
 static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events, uint32_t n,
-                             const float lo[3], const float hi[3], float inv_area,
-                             kdrt__plane *best)
+                             const float lo[3], const float hi[3], double inv_area,
+                             uint32_t budget, kdrt__plane *best)
 {
     int k;
     for (k = 0; k < 3; ++k) {
-        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, inv_area);
+        kdrt__axis_cost cost = kdrt__axis_setup(b, k, lo, hi, inv_area, budget);
         kdrt__sweep(&cost, events->axis[k], events->count[k], n, best);
     }
 }
 
 /* The node's split, or axis -1 for a leaf: at most max_leaf_size triangles, at max_depth, or no
-   plane cheaper than testing all n (cost-based termination). With events (the exact region) every
-   candidate is tried; without, the bins choose, and where they find nothing worth a split every
-   candidate is tried before the node is made a leaf. */
+   plane within the budget cheaper than testing all n (cost-based termination). With events (the
+   exact region) every candidate is tried; without, the bins choose, and where they find nothing
+   worth a split every candidate is tried before the node is made a leaf. */
 static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena,
                                       const kdrt__ref *refs, uint32_t n, const kdrt__events *events,
                                       const float lo[3], const float hi[3], uint32_t depth,
-                                      kdrt__plane *best)
+                                      uint32_t budget, kdrt__plane *best)
 {
-    float area = kdrt__half_area(lo, hi), leaf_cost = b->sah_isect * (float)n;
+    double area = kdrt__half_area(lo, hi), leaf_cost = (double)b->sah_isect * (double)n;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
-    if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0f)) return KDRT_SUCCESS;
+    if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0)) return KDRT_SUCCESS;
     if (events) {
-        kdrt__sweep_axes(b, events, n, lo, hi, 1.0f / area, best);
+        kdrt__sweep_axes(b, events, n, lo, hi, 1.0 / area, budget, best);
     } else {
-        kdrt__binned_plane(b, refs, n, lo, hi, 1.0f / area, best);
+        kdrt__binned_plane(b, refs, n, lo, hi, 1.0 / area, budget, best);
         if (!(best->cost < leaf_cost)) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
             if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
                 return KDRT_ERROR_OUT_OF_MEMORY;
-            kdrt__sweep_axes(b, &all, n, lo, hi, 1.0f / area, best);
+            kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
             kdrt__arena_release(arena, mark);
         }
     }
@@ -1666,7 +1746,8 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
             for (r = 0; r < cuts[c]; ++r)
                 made +=
                     kdrt__push_events(&child[c][cut_refs[c][r]], cut_refs[c][r], k, fresh + made);
-            kdrt__sort_keys(fresh, made);
+            if (kdrt__sort_keys(arena, fresh, made) != KDRT_SUCCESS)
+                return KDRT_ERROR_OUT_OF_MEMORY;
             out[c].count[k] = kept[c] + made;
             for (i = kept[c], w = kept[c] + made; made > 0;) /* merge from the back, in place */
                 o[--w] = (i > 0 && o[i - 1] > fresh[made - 1]) ? o[--i] : fresh[--made];
@@ -1675,61 +1756,81 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
     return KDRT_SUCCESS;
 }
 
-/* Builds the subtree of a node with box [lo, hi] into b, depth first (the below child right
-   after its parent); events are the node's sorted events in the exact region, NULL above it.
-   Scratch memory comes from the arena and is back there on return. */
-static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kdrt__ref *refs,
-                                  uint32_t n, const kdrt__events *events, const float lo[3],
-                                  const float hi[3], uint32_t depth)
+/* Builds the subtree of a node with box [lo, hi] and n <= budget references into b, depth first
+   (the below child right after its parent); events are the node's sorted events in the exact
+   region, NULL above it. Scratch memory comes from the arena and is back there on return.
+   Above the exact region the references are arrays from the allocator, each owned by its node
+   (owned: this call frees refs, as soon as the children have theirs): the arrays alive at any
+   moment then belong to nodes none of which lies above another, which share the budget, so the
+   build's scratch stays within the budget however deep the tree. */
+static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__ref *refs,
+                                  uint32_t n, int owned, const kdrt__events *events,
+                                  const float lo[3], const float hi[3], uint32_t depth,
+                                  uint32_t budget)
 {
     kdrt__mark mark = kdrt__arena_mark(arena);
-    kdrt__ref *child[2];
+    kdrt__ref *child[2] = {NULL, NULL};
     kdrt__events entry, child_events[2];
     unsigned char *sides = NULL;
-    uint32_t node, count[2], *index[2] = {NULL, NULL}, i;
+    uint32_t node = 0, count[2] = {0, 0}, child_budget[2] = {0, 0}, *index[2] = {NULL, NULL}, i;
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
-    kdrt_result r;
+    kdrt_result r = KDRT_SUCCESS;
+    int binned;
 
+    plane.axis = -1;
     if (!events && n <= KDRT_SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
         /* Down to the exact region: each axis's events sorted, once for the whole subtree. */
         r = kdrt__sorted_events(arena, refs, n, &entry);
-        if (r != KDRT_SUCCESS) return r;
         events = &entry;
     }
-    if (b->node_count >= KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
-    r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count + 1,
-                      sizeof(kdrt__node));
-    if (r != KDRT_SUCCESS) return r;
-    node = b->node_count++;
-    r = kdrt__choose_plane(b, arena, refs, n, events, lo, hi, depth, &plane);
-    if (r != KDRT_SUCCESS) return r;
-    if (plane.axis < 0) {
-        uint32_t *tris = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
-        if (!tris) return KDRT_ERROR_OUT_OF_MEMORY;
-        for (i = 0; i < n; ++i) tris[i] = refs[i].tri;
-        r = kdrt__emit_leaf(b, node, tris, n, depth);
-        kdrt__arena_release(arena, mark);
-        return r;
-    }
-    kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
-    if (events) {
-        sides = (unsigned char *)kdrt__arena_alloc(arena, (size_t)n + 1);
-        index[0] = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
-        index[1] = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
-        if (!sides || !index[0] || !index[1]) return KDRT_ERROR_OUT_OF_MEMORY;
-    }
-    r = kdrt__split_refs(b, arena, refs, n, &plane, child_lo, child_hi, child, count, sides, index);
-    if (events && r == KDRT_SUCCESS)
-        r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
+    binned = !events; /* the children's arrays come from the allocator, owned by them */
+    if (r == KDRT_SUCCESS && b->node_count >= KDRT_MAX_TRIANGLES) r = KDRT_ERROR_SIZE_OVERFLOW;
     if (r == KDRT_SUCCESS)
-        r = kdrt__sah_node(b, arena, child[0], count[0], events ? &child_events[0] : NULL,
-                           child_lo[0], child_hi[0], depth + 1);
+        r = kdrt__reserve(b->allocator, (void **)&b->nodes, &b->node_capacity,
+                          b->node_count + 1, sizeof(kdrt__node));
     if (r == KDRT_SUCCESS) {
-        b->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, b->node_count);
-        r = kdrt__sah_node(b, arena, child[1], count[1], events ? &child_events[1] : NULL,
-                           child_lo[1], child_hi[1], depth + 1);
+        node = b->node_count++;
+        r = kdrt__choose_plane(b, arena, refs, n, events, lo, hi, depth, budget, &plane);
     }
+    if (r == KDRT_SUCCESS && plane.axis >= 0) {
+        kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
+        if (events) {
+            sides = (unsigned char *)kdrt__arena_alloc(arena, (size_t)n + 1);
+            index[0] = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
+            index[1] = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
+            if (!sides || !index[0] || !index[1]) r = KDRT_ERROR_OUT_OF_MEMORY;
+        }
+        if (r == KDRT_SUCCESS)
+            r = kdrt__split_refs(b, binned ? NULL : arena, refs, n, &plane, child_lo, child_hi,
+                                 child, count, sides, index);
+        /* The bins' counts can be off by a reference or two: the real ones decide. */
+        if (r == KDRT_SUCCESS && !kdrt__share_budget(budget, count, child_budget)) plane.axis = -1;
+    }
+    if (r == KDRT_SUCCESS && plane.axis < 0) {
+        uint32_t *tris = (uint32_t *)kdrt__arena_alloc(arena, ((size_t)n + 1) * sizeof(uint32_t));
+        if (!tris) r = KDRT_ERROR_OUT_OF_MEMORY;
+        for (i = 0; tris && i < n; ++i) tris[i] = refs[i].tri;
+        if (tris) r = kdrt__emit_leaf(b, node, tris, n, depth);
+    }
+    if (owned) kdrt__free(b->allocator, refs); /* the children have their own */
+    if (r == KDRT_SUCCESS && plane.axis >= 0) {
+        if (events)
+            r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
+        if (r == KDRT_SUCCESS)
+            r = kdrt__sah_node(b, arena, child[0], count[0], binned,
+                               events ? &child_events[0] : NULL, child_lo[0], child_hi[0],
+                               depth + 1, child_budget[0]);
+        child[0] = NULL; /* freed by its node */
+        if (r == KDRT_SUCCESS) {
+            b->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, b->node_count);
+            r = kdrt__sah_node(b, arena, child[1], count[1], binned,
+                               events ? &child_events[1] : NULL, child_lo[1], child_hi[1],
+                               depth + 1, child_budget[1]);
+            child[1] = NULL;
+        }
+    }
+    if (binned) kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
     kdrt__arena_release(arena, mark);
     return r;
 }
@@ -1746,7 +1847,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, const kd
 typedef struct kdrt__task {
     kdrt__builder out; /* the subtree, its nodes and refs numbered from 0 */
     kdrt__ref *refs;   /* its references, owned until the task has run */
-    uint32_t n, depth;
+    uint32_t n, depth, budget;
     float lo[3], hi[3];
     kdrt_result result;
 } kdrt__task;
@@ -1765,18 +1866,19 @@ static void kdrt__run_task(void *data, uint32_t index)
     kdrt__task *t = &top->tasks[top->largest_first[index]];
     kdrt__arena arena;
     kdrt__arena_init(&arena, t->out.allocator);
-    t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, NULL, t->lo, t->hi, t->depth);
+    t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, 1, NULL, t->lo, t->hi, t->depth,
+                               t->budget);
+    t->refs = NULL; /* the subtree's root freed them */
     kdrt__arena_free(&arena);
-    kdrt__free(t->out.allocator, t->refs);
-    t->refs = NULL;
 }
 
 /* The top of the tree: splits large nodes and hands the rest to tasks; takes ownership of refs. */
 static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__ref *refs,
-                                 uint32_t n, const float lo[3], const float hi[3], uint32_t depth)
+                                 uint32_t n, const float lo[3], const float hi[3], uint32_t depth,
+                                 uint32_t budget)
 {
     kdrt__ref *child[2] = {NULL, NULL};
-    uint32_t node = top->node_count++, count[2];
+    uint32_t node = top->node_count++, count[2], child_budget[2];
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
     kdrt_result r = KDRT_SUCCESS;
@@ -1785,9 +1887,19 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
     plane.axis = -1;
     if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH) {
         kdrt__arena_init(&arena, b->allocator);
-        r = kdrt__choose_plane(b, &arena, refs, n, NULL, lo, hi, depth, &plane);
+        r = kdrt__choose_plane(b, &arena, refs, n, NULL, lo, hi, depth, budget, &plane);
         kdrt__arena_free(&arena);
         if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
+    }
+    if (plane.axis >= 0) {
+        kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
+        r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, NULL,
+                             NULL);
+        if (r != KDRT_SUCCESS || !kdrt__share_budget(budget, count, child_budget)) {
+            kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
+            if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
+            plane.axis = -1; /* over the budget after all: the node goes to a task */
+        }
     }
     if (plane.axis < 0) {
         kdrt__task *t = &top->tasks[top->task_count];
@@ -1795,22 +1907,18 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         t->out.nodes = NULL, t->out.node_count = t->out.node_capacity = 0;
         t->out.refs = NULL, t->out.ref_count = t->out.ref_capacity = 0;
         t->out.leaves = t->out.depth_reached = 0;
-        t->refs = refs, t->n = n, t->depth = depth, t->result = KDRT_SUCCESS;
+        t->refs = refs, t->n = n, t->depth = depth, t->budget = budget, t->result = KDRT_SUCCESS;
         memcpy(t->lo, lo, sizeof t->lo), memcpy(t->hi, hi, sizeof t->hi);
         top->nodes[node] = kdrt__node_leaf(top->task_count++, 0); /* first_ref: the task */
         return KDRT_SUCCESS;
     }
-    kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
-    r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, NULL, NULL);
     kdrt__free(b->allocator, refs);
-    if (r != KDRT_SUCCESS) {
-        kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
-        return r;
-    }
-    r = kdrt__sah_top(b, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1);
+    r = kdrt__sah_top(b, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1,
+                      child_budget[0]);
     top->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, top->node_count);
     if (r == KDRT_SUCCESS)
-        return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1);
+        return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1,
+                             child_budget[1]);
     kdrt__free(b->allocator, child[1]);
     return r;
 }
@@ -1850,12 +1958,13 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
                                    const float hi[3])
 {
     kdrt__top *top = (kdrt__top *)kdrt__alloc(b->allocator, sizeof *top);
-    uint64_t nodes = 0, total_refs = 0;
+    uint64_t nodes = 0, total_refs = 0, budget = (uint64_t)KDRT_SAH_REFERENCE_BUDGET * n;
     uint32_t i;
     kdrt_result r;
     if (!top) { kdrt__free(b->allocator, refs); return KDRT_ERROR_OUT_OF_MEMORY; }
+    if (budget > 0xFFFFFFFFu) budget = 0xFFFFFFFFu; /* the most references a tree can address */
     top->node_count = top->task_count = 0;
-    r = kdrt__sah_top(b, top, refs, n, lo, hi, 0);
+    r = kdrt__sah_top(b, top, refs, n, lo, hi, 0, (uint32_t)budget);
     if (r == KDRT_SUCCESS) {
         /* Largest first, so that no thread is left with a big task at the end (the order
            changes only the timing: each task's subtree goes where its index says). */
@@ -2011,19 +2120,13 @@ static uint32_t kdrt__default_depth(uint32_t n)
     return depth < KDRT_MAX_DEPTH ? depth : KDRT_MAX_DEPTH;
 }
 
-static double kdrt__box_area(const float lo[3], const float hi[3])
-{
-    double dx = (double)hi[0] - lo[0], dy = (double)hi[1] - lo[1], dz = (double)hi[2] - lo[2];
-    return 2.0 * (dx * dy + dy * dz + dz * dx);
-}
-
 /* kdrt_tree_stats.sah_cost of a finished tree: a walk with an explicit stack, each node's box cut
    from its parent's at the split. Both builders split inside the node's box: a plane beyond it
    would leave one child as large as the node, which neither accepts. */
 static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, double intersection_cost)
 {
     struct { uint32_t node; float lo[3], hi[3]; } stack[KDRT_MAX_DEPTH], at;
-    double root_area = kdrt__box_area(tree->bounds.min, tree->bounds.max), cost = 0.0;
+    double root_area = kdrt__half_area(tree->bounds.min, tree->bounds.max), cost = 0.0;
     unsigned sp = 0;
     if (tree->stats.triangles == 0 || !(root_area > 0.0))
         return intersection_cost * (double)tree->stats.triangle_refs; /* empty: 0 */
@@ -2032,7 +2135,7 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
     memcpy(at.hi, tree->bounds.max, sizeof at.hi);
     for (;;) {
         const kdrt__node *node = &tree->nodes[at.node];
-        double share = kdrt__box_area(at.lo, at.hi) / root_area;
+        double share = kdrt__half_area(at.lo, at.hi) / root_area;
         int axis = (int)kdrt__node_axis(node);
         if (kdrt__node_is_leaf(node)) {
             cost += share * intersection_cost * (double)kdrt__node_count(node);
@@ -2389,13 +2492,13 @@ static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
 /* Watertight test (Woop, Benthin & Wald, JCGT 2013). The corners are moved to the ray's origin
    and sheared so the ray runs along +z; the 2D edge functions then depend only on the two corners
    of each edge, so triangles sharing that edge compute it with the same value and opposite sign,
-   and a ray through the edge or a shared vertex hits at least one of them. Edge functions that
-   come out exactly 0 are redone in double, where the products are exact, so their sign is too. */
+   and a ray through the edge or a shared vertex hits at least one of them. */
 static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangle *tri,
                                       const kdrt__ray_setup *s, kdrt_hit *best)
 {
     const float *p[3];
-    float x[3], y[3], z[3], e0, e1, e2, det, inv_det;
+    float x[3], y[3], z[3];
+    double e0, e1, e2, det, inv_det;
     const int kx = s->kx, ky = s->ky, kz = s->kz;
     int k;
     for (k = 0; k < 3; ++k) p[k] = vertices + 3 * (size_t)tri->v[k];
@@ -2405,20 +2508,21 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
         y[k] = dy - s->shear_y * dz;
         z[k] = s->shear_z * dz;
     }
-    /* In double the products of floats are exact, so each edge function is rounded once, and
-       its sign is right: the two triangles of an edge get exactly opposite values, even where
-       the compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM).
-       Written out rather than with kdrt__cross: each is a single 2D determinant of floats
-       widened to double and rounded back to float on the spot. */
-    e0 = (float)((double)x[2] * y[1] - (double)y[2] * x[1]); /* edge 1-2: weight of corner 0 */
-    e1 = (float)((double)x[0] * y[2] - (double)y[0] * x[2]); /* edge 2-0: weight of corner 1 */
-    e2 = (float)((double)x[1] * y[0] - (double)y[1] * x[0]); /* edge 0-1: weight of corner 2 */
-    if ((e0 < 0.0f || e1 < 0.0f || e2 < 0.0f) && (e0 > 0.0f || e1 > 0.0f || e2 > 0.0f)) return 0;
+    /* In double the products of floats are exact, so each edge function is rounded once and its
+       sign is right: the two triangles of an edge get exactly opposite values, even where the
+       compiler fuses a * b - c * d into an FMA (-march=native, Clang's default on ARM). Kept in
+       double, they neither overflow nor turn subnormal however large or small the coordinates
+       (a float edge function overflows beyond about 1e19 and loses its bits below 1e-19).
+       Written out rather than with kdrt__cross: each is a 2D determinant of floats. */
+    e0 = (double)x[2] * y[1] - (double)y[2] * x[1]; /* edge 1-2: weight of corner 0 */
+    e1 = (double)x[0] * y[2] - (double)y[0] * x[2]; /* edge 2-0: weight of corner 1 */
+    e2 = (double)x[1] * y[0] - (double)y[1] * x[0]; /* edge 0-1: weight of corner 2 */
+    if ((e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0)) return 0;
     det = e0 + e1 + e2;
-    if (det == 0.0f) return 0; /* the ray lies in the triangle's plane, sheared exactly */
-    inv_det = 1.0f / det;
-    return kdrt__accept(best, tri->id, (e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det, e1 * inv_det,
-                        e2 * inv_det, s);
+    if (det == 0.0) return 0; /* the ray lies in the triangle's plane, sheared exactly */
+    inv_det = 1.0 / det;
+    return kdrt__accept(best, tri->id, (float)((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det),
+                        (float)(e1 * inv_det), (float)(e2 * inv_det), s);
 }
 
 /* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an

@@ -676,6 +676,49 @@ Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer) {
 
 // ---------------------------------------------------------------------------------------------
 
+std::vector<std::string> hostile_kinds() { return {"fan", "cone", "slivers", "overlapping", "identical"}; }
+
+Mesh hostile_mesh(const std::string &kind, uint32_t triangles, uint64_t seed) {
+    Mesh m;
+    m.name = "hostile_" + kind;
+    Rng rng(seed);
+    double p[3][3];
+    for (uint32_t i = 0; i < triangles; ++i) {
+        if (kind == "fan" || kind == "cone") {
+            const double a0 = 2 * kPi * i / triangles, a1 = 2 * kPi * (i + 1) / triangles;
+            const double corners[3][3] = {{0, 0, kind == "cone" ? 1.0 : 0.0},
+                                          {std::cos(a0), std::sin(a0), 0},
+                                          {std::cos(a1), std::sin(a1), 0}};
+            std::memcpy(p, corners, sizeof p);
+        } else if (kind == "slivers") {
+            // From one face of the cube to the opposite one on axis `along` (x or y), at a
+            // random height on the other two.
+            const int along = int(i % 2), across = 1 - along;
+            const double at = rng.uniform(), z = rng.uniform(), w = 1e-3;
+            const double from[2] = {0, 1}, side[3] = {at, at + w, at};
+            for (int k = 0; k < 3; ++k) {
+                p[k][along] = from[k > 0];
+                p[k][across] = side[k];
+                p[k][2] = k == 2 ? z + w : z;
+            }
+        } else if (kind == "overlapping") {
+            double o[3];
+            for (double &x : o) x = 0.7 * rng.uniform();
+            for (auto &corner : p)
+                for (int k = 0; k < 3; ++k) corner[k] = o[k] + 0.3 * rng.uniform();
+        } else if (kind == "identical") {
+            const double corners[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0.5}};
+            std::memcpy(p, corners, sizeof p);
+        } else {
+            return Mesh();
+        }
+        add_triangle(m, p);
+    }
+    return m;
+}
+
+// ---------------------------------------------------------------------------------------------
+
 bool is_closed(const Mesh &mesh, std::string *why) {
     auto fail = [&](const std::string &reason) {
         if (why) *why = mesh.name + ": " + reason;

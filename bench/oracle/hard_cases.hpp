@@ -25,6 +25,15 @@ std::vector<common::Mesh> closed_meshes(bool include_shared);
 // quads (two triangles each); integer: every coordinate rounded to a whole number.
 common::Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer);
 
+// Meshes that drive a kd-tree builder to its worst, `triangles` triangles each, deterministic for
+// a seed; `kind` is one of hostile_kinds(): "fan" (a flat disk of triangles round one shared
+// vertex: every plane near the centre cuts most of them), "cone" (the same fan with its centre
+// lifted), "slivers" (needles 1e-3 thick across the whole unit cube, half along x and half along
+// y, crossing each other), "overlapping" (triangles about 0.3 across anywhere in the unit cube)
+// and "identical" (one triangle, many times). A soup; named "hostile_KIND".
+std::vector<std::string> hostile_kinds();
+common::Mesh hostile_mesh(const std::string &kind, uint32_t triangles, uint64_t seed);
+
 // True when every edge, with vertices matched by equal coordinates (as the watertight test
 // matches them), belongs to exactly two triangles and no triangle has zero area. Otherwise false,
 // with the reason in *why when given.
