@@ -3,6 +3,7 @@
 #include "scene_file.hpp"
 
 #include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -487,6 +488,60 @@ bool Reader::read_scene(const YAML::Node &root, Scene &scene)
            read_objects(top, scene, materials) && read_lights(top, scene) && read_settings(top, scene);
 }
 
+// Where a second YAML document starts, if the text has one: yaml-cpp's parser asked for two
+// documents, never for all of them. yaml-cpp 0.7's LoadAll loops for ever, allocating, on a
+// token no document can start with (a lone ',': upstream issue 1040), because each call returns
+// an empty document without reading it; Load reads one document and ignores the rest.
+class SecondDocument : public YAML::EventHandler {
+public:
+    // False when nothing follows the first document. `start` is the mark of the second's first
+    // token ('---', or the token the first document stopped at), `node` its first node's.
+    static bool find(const std::string &text, YAML::Mark &start, YAML::Mark &node)
+    {
+        std::istringstream in(text);
+        YAML::Parser parser(in);
+        SecondDocument events;
+        if (!parser.HandleNextDocument(events) || !parser) return false;
+        try {
+            parser.HandleNextDocument(events);
+        } catch (const YAML::Exception &) {  // a broken second document is still a second one
+        }
+        start = events.start_, node = events.node_;
+        return true;
+    }
+
+    void OnDocumentStart(const YAML::Mark &mark) override
+    {
+        if (++documents_ == 2) start_ = node_ = mark;
+    }
+    void OnDocumentEnd() override {}
+    void OnNull(const YAML::Mark &mark, YAML::anchor_t) override { first_node(mark); }
+    void OnAlias(const YAML::Mark &mark, YAML::anchor_t) override { first_node(mark); }
+    void OnScalar(const YAML::Mark &mark, const std::string &, YAML::anchor_t, const std::string &) override
+    {
+        first_node(mark);
+    }
+    void OnSequenceStart(const YAML::Mark &mark, const std::string &, YAML::anchor_t, YAML::EmitterStyle::value) override
+    {
+        first_node(mark);
+    }
+    void OnSequenceEnd() override {}
+    void OnMapStart(const YAML::Mark &mark, const std::string &, YAML::anchor_t, YAML::EmitterStyle::value) override
+    {
+        first_node(mark);
+    }
+    void OnMapEnd() override {}
+
+private:
+    void first_node(const YAML::Mark &mark)
+    {
+        if (documents_ == 2 && !seen_node_) node_ = mark, seen_node_ = true;
+    }
+    int documents_ = 0;
+    bool seen_node_ = false;
+    YAML::Mark start_, node_;
+};
+
 }  // namespace
 
 bool parse_scene_text(const std::string &text, const std::string &name_for_errors, const std::string &base_dir,
@@ -507,10 +562,17 @@ bool parse_scene_text(const std::string &text, const std::string &name_for_error
     Scene local;
     local.name = name_for_errors;
     try {
-        const std::vector<YAML::Node> documents = YAML::LoadAll(text);
-        if (documents.size() > 1) {
-            reader.fail(documents[1], "a second YAML document ('---'): a scene file holds one");
-        } else if (reader.read_scene(documents.empty() ? YAML::Node() : documents[0], local)) {
+        const YAML::Node root = YAML::Load(text);
+        YAML::Mark start, node;
+        if (SecondDocument::find(text, start, node)) {
+            if (text.compare(std::size_t(std::max(start.pos, 0)), 3, "---") == 0) {
+                reader.fail_at(node.line, "a second YAML document ('---'): a scene file holds one");
+            } else {  // what yaml-cpp 0.7 lets end the first document: a ',' or ']' out of place
+                const std::size_t from = std::min(text.size(), std::size_t(std::max(start.pos, 0)));
+                const std::string rest = text.substr(from, std::min<std::size_t>(20, text.find('\n', from) - from));
+                reader.fail_at(start.line, "YAML syntax error: unexpected '" + rest + "'");
+            }
+        } else if (reader.read_scene(root, local)) {
             scene = std::move(local);
             return true;
         }
