@@ -338,6 +338,24 @@ TEST_CASE("values out of range are errors naming the range", "[scene_file]")
     check_error(minimal + "settings:\n  NSAMPLES: 0\n", 7, "setting NSAMPLES: '0' is not an integer from 1 to 65536");
 }
 
+TEST_CASE("a view direction that overflows or underflows is blamed on position and target, not up", "[scene_file]")
+{
+    // Each coordinate is finite; target - position, or its length, is not.
+    check_error("camera: {position: [-1e308, 0, 0], target: [1e308, 0, 0]}\n", 1,
+                "camera 'position' and 'target' are too far apart: target - position overflows, got [-1e308, 0, 0] "
+                "and [1e308, 0, 0]");
+    check_error("camera: {position: [0, 0, 0],\n         target: [1e200, 1e200, 0]}\n", 2, "too far apart");
+    check_error("camera: {position: [0, 0, 0], target: [1e-200, 0, 0]}\n", 1,
+                "camera 'target' is too close to its 'position'");
+    check_error("camera: {position: [0, 0, 5], target: [0, 0, 0], up: [0, 1e200, 1e200]}\n", 1,
+                "camera 'up' is too long: its length overflows");
+    // Large but representable: still a scene.
+    const Scene far = parse_good("camera: {position: [0, 0, 1e150], target: [0, 1e150, -1e150]}\n"
+                                 "materials: [{name: white}]\n"
+                                 "spheres: [{center: [0, 0, 0], radius: 1, material: white}]\n");
+    CHECK(far.camera.target.y == 1e150);
+}
+
 TEST_CASE("a token no YAML document can start with is an error, never an endless loop", "[scene_file]")
 {
     // yaml-cpp 0.7 ends a document at such a token without reading it; asked for every document,

@@ -317,8 +317,20 @@ bool Reader::read_camera(const Fields &top, Camera &camera)
         !number(f, "fov", "vertical degrees in (0, 180)", [](double v) { return v > 0 && v < 180; },
                 camera.fov_degrees, Need::optional))
         return false;
+    // The renderer normalizes target - position and up in double: their lengths must be finite
+    // and non-zero there, and a failure is the fault of the vectors that cause it.
     const Vec3 view = camera.target - camera.position;
-    if (!(length(view) > 0)) return fail(*f.find("target"), "camera 'target' must differ from its 'position'");
+    const YAML::Node &target = *f.find("target");
+    if (!std::isfinite(length(view)))
+        return fail(target, "camera 'position' and 'target' are too far apart: target - position overflows, got " +
+                                describe(*f.find("position")) + " and " + describe(target));
+    if (view.x == 0 && view.y == 0 && view.z == 0)
+        return fail(target, "camera 'target' must differ from its 'position'");
+    if (!(length(view) > 0))
+        return fail(target, "camera 'target' is too close to its 'position': the length of target - position "
+                            "underflows, got " + describe(*f.find("position")) + " and " + describe(target));
+    if (!std::isfinite(length(camera.up)))
+        return fail(*f.find("up"), "camera 'up' is too long: its length overflows, got " + describe(*f.find("up")));
     if (!(length(cross(normalize(view), normalize(camera.up))) > 1e-6))
         return fail(f.find("up") ? *f.find("up") : f.map,
                     "camera 'up' must be a non-zero vector not along the view direction, got " +
