@@ -577,10 +577,10 @@ bool parse_scene_text(const std::string &text, const std::string &name_for_error
         const YAML::Node root = YAML::Load(text);
         YAML::Mark start, node;
         if (SecondDocument::find(text, start, node)) {
-            if (text.compare(std::size_t(std::max(start.pos, 0)), 3, "---") == 0) {
+            const std::size_t from = std::min(text.size(), std::size_t(std::max(start.pos, 0)));
+            if (text.compare(from, 3, "---") == 0) {
                 reader.fail_at(node.line, "a second YAML document ('---'): a scene file holds one");
-            } else {  // what yaml-cpp 0.7 lets end the first document: a ',' or ']' out of place
-                const std::size_t from = std::min(text.size(), std::size_t(std::max(start.pos, 0)));
+            } else {  // a token yaml-cpp 0.7 ends the first document at (a stray ','), or more after '...'
                 const std::string rest = text.substr(from, std::min<std::size_t>(20, text.find('\n', from) - from));
                 reader.fail_at(start.line, "YAML syntax error: unexpected '" + rest + "'");
             }
