@@ -306,7 +306,7 @@ TEST_CASE("render: a failed write leaves no output and no temporary file", "[ren
     CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
 }
 
-TEST_CASE("render: a read-only image is refused and kept, for root too; a writable one is replaced", "[render][image]")
+TEST_CASE("render: a read-only image is refused and kept, for root too, and a writable one is replaced", "[render][image]")
 {
     TempDir dir;
     kr::Image image;
