@@ -235,6 +235,7 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
         progress.step(set.set + " " + set.scene);
     };
     for (const Input &in : inputs) {
+        if (!written) break;
         const kb::Scene scene = kb::make_scene(in.mesh, in.label);
         for (const kb::AccuracySet &set : kb::frame_sets(scene, opt.width, opt.height, seed)) run(set);
         for (double offset : offsets) run(kb::far_set(scene, offset, opt.width, opt.height, seed));
