@@ -7,6 +7,9 @@
 #include "bench.hpp"
 #include "embree_peer.hpp"
 #include "oracle/reference.hpp"
+#include "common/atomic_file.hpp"
+#include "common/interrupt.hpp"
+#include "common/output.hpp"
 #include "common/thread_scheduler.hpp"
 #include "common/timing.hpp"
 
@@ -18,7 +21,6 @@
 #include <cstring>
 #include <filesystem>
 #include <iterator>
-#include <memory>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -94,9 +96,119 @@ struct Progress {
     }
 };
 
+// Where the CSV goes: standard output, or with -o OUT a rows-so-far file OUT.partial beside OUT,
+// flushed and checked row by row and renamed over OUT when the run ends with at least one row.
+// A run that is interrupted, cannot write, or writes no row leaves OUT as it was, and its whole
+// rows, if any, in OUT.partial (bench/README.md).
+class Csv {
+public:
+    ~Csv()
+    {
+        if (file_) std::fclose(file_);
+    }
+
+    bool open(const std::string &output, std::string &error)
+    {
+        if (output.empty()) return true;
+        output_ = output;
+        partial_ = output + ".partial";
+        if (!common::check_replaceable(output_, error) || !common::check_replaceable(partial_, error)) return false;
+        // Until the first row a signal removes the partial file, which would hold only the header.
+        slot_ = common::remove_on_signal(partial_);
+        common::note_on_signal("kdrt-bench: interrupted before any row; '" + output_ + "' is as it was");
+        file_ = std::fopen(partial_.c_str(), "w");
+        if (!file_) {
+            error = "cannot write '" + output_ + "': cannot create " + partial_ + ": " + std::strerror(errno);
+            drop_signal_handling();
+            return false;
+        }
+        return true;
+    }
+
+    // The header, then each row; false with the reason when any of it failed to reach the file.
+    bool line(const std::string &text, std::string &error)
+    {
+        const bool row = started_;
+        started_ = true;
+        if (!file_) {
+            if (!common::write_flushed(stdout, text + "\n", "standard output", error)) return false;
+        } else if (!common::write_flushed(file_, text + "\n", "'" + partial_ + "'", error)) {
+            abandon();
+            error += "; " + where();
+            return false;
+        } else {
+            whole_bytes_ = std::ftell(file_);
+            if (row && rows_ == 0) {  // from now on a signal keeps the partial file, and says so
+                common::forget_on_signal(slot_);
+                slot_ = -1;
+                common::note_on_signal("kdrt-bench: interrupted; the rows so far are in '" + partial_ + "', and '" +
+                                       output_ + "' is as it was");
+            }
+        }
+        rows_ += row;
+        return true;
+    }
+
+    // The end of the run: OUT.partial becomes OUT if it holds a row; false with the reason if not.
+    bool finish(std::string &error)
+    {
+        if (!rows_) {
+            if (file_) abandon();
+            error = "no row was written" + (output_.empty() ? std::string() : "; " + where());
+            return false;
+        }
+        if (!file_) return true;  // standard output: close_stdout checks its end
+        const bool closed = std::fclose(file_) == 0;
+        const int reason = errno;
+        file_ = nullptr;
+        drop_signal_handling();
+        if (!closed) {
+            error = "cannot write '" + partial_ + "': " + std::strerror(reason);
+        } else if (common::check_replaceable(output_, error)) {  // it may have changed since the start
+            if (std::rename(partial_.c_str(), output_.c_str()) == 0) return true;
+            error = "cannot rename '" + partial_ + "' over '" + output_ + "': " + std::strerror(errno);
+        }
+        error += "; " + where();
+        return false;
+    }
+
+private:
+    void drop_signal_handling()
+    {
+        common::forget_on_signal(slot_);
+        slot_ = -1;
+        common::note_on_signal("");
+    }
+
+    // After a failed write: the partial file cut back to its whole rows, or removed without any.
+    void abandon()
+    {
+        const bool cut = ftruncate(fileno(file_), whole_bytes_) == 0;  // else it keeps its cut row
+        (void)cut;
+        std::fclose(file_);
+        file_ = nullptr;
+        if (!rows_) std::remove(partial_.c_str());
+        drop_signal_handling();
+    }
+
+    std::string where() const
+    {
+        if (!rows_) return "'" + output_ + "' is as it was";
+        return "the " + std::to_string(rows_) + " row(s) so far are in '" + partial_ + "', and '" + output_ +
+               "' is as it was";
+    }
+
+    std::string output_, partial_;
+    std::FILE *file_ = nullptr;
+    long whole_bytes_ = 0;
+    size_t rows_ = 0;
+    bool started_ = false;
+    int slot_ = -1;
+};
+
 // --accuracy: every ray set through every intersector, a CSV row each, the summary on stderr.
 int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const std::vector<kdrt_intersector> &intersectors,
-                 FILE *out, Progress &progress, int failures) {
+                 Csv &csv, Progress &progress, int failures) {
     const uint32_t seed = 1;
     const double offsets[] = {1e3, 1e5, 1e7};
     common::Stopwatch wall;
@@ -106,39 +218,45 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
     progress.total = inputs.size() * (2 + std::size(offsets)) + extra.size();
 
     std::vector<kb::AccuracyRow> rows;
-    std::string error;
+    std::string error, write_error;
+    bool written = csv.line(kb::accuracy_csv_header(), write_error);
     auto run = [&](const kb::AccuracySet &set) {
+        if (!written) return;  // the CSV cannot be written: the run is over
         const size_t first = rows.size();
         if (!kb::run_accuracy_set(set, intersectors, opt.reference_rays, opt.threads, opt.repeat, seed, true, rows, error)) {
             progress.note("kdrt-bench: " + error);
             ++failures;
         }
-        for (size_t i = first; i < rows.size(); ++i) {
-            std::fprintf(out, "%s\n", kb::accuracy_csv_row(rows[i]).c_str());
+        for (size_t i = first; i < rows.size() && written; ++i) {
+            written = csv.line(kb::accuracy_csv_row(rows[i]), write_error);
             if (!rows[i].errors.first.empty())
                 progress.note(set.set + " " + set.scene + " " + rows[i].intersector + ": first error: " + rows[i].errors.first);
         }
-        std::fflush(out);
         progress.step(set.set + " " + set.scene);
     };
-    std::fprintf(out, "%s\n", kb::accuracy_csv_header().c_str());
-    std::fflush(out);
     for (const Input &in : inputs) {
+        if (!written) break;
         const kb::Scene scene = kb::make_scene(in.mesh, in.label);
         for (const kb::AccuracySet &set : kb::frame_sets(scene, opt.width, opt.height, seed)) run(set);
         for (double offset : offsets) run(kb::far_set(scene, offset, opt.width, opt.height, seed));
     }
     for (const kb::AccuracySet &set : extra) run(set);
+    if (!written) {
+        progress.note("kdrt-bench: " + write_error);
+        return 1;
+    }
 
     std::fprintf(stderr, "\n%s", kb::accuracy_table(kb::accuracy_summary(rows)).c_str());
     std::fprintf(stderr, "kdrt-bench --accuracy: %.1f s\n", wall.ms() / 1000.0);
     if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or set(s) failed; see above");
+    if (!csv.finish(error)) {
+        progress.note("kdrt-bench: " + error);
+        return 1;
+    }
     return failures ? 1 : 0;
 }
 
-}  // namespace
-
-int main(int argc, char **argv) {
+int run(int argc, char **argv) {
     kb::Options opt;
     std::string error;
     if (!kb::parse_options(argc, argv, opt, error)) {
@@ -155,15 +273,10 @@ int main(int argc, char **argv) {
         return 2;
     }
     // Open the output before any work, so an unwritable path costs nothing.
-    FILE *out = stdout;
-    std::unique_ptr<FILE, int (*)(FILE *)> file(nullptr, std::fclose);
-    if (!opt.output.empty()) {
-        file.reset(std::fopen(opt.output.c_str(), "w"));
-        if (!file) {
-            std::fprintf(stderr, "kdrt-bench: cannot write '%s': %s\n", opt.output.c_str(), std::strerror(errno));
-            return 1;
-        }
-        out = file.get();
+    Csv csv;
+    if (!csv.open(opt.output, error)) {
+        std::fprintf(stderr, "kdrt-bench: %s\n", error.c_str());
+        return 1;
     }
 
     Progress progress;
@@ -189,7 +302,7 @@ int main(int argc, char **argv) {
         if (opt.subdivide) in.mesh = common::subdivided(in.mesh, opt.subdivide), in.label += "_SUB" + std::to_string(opt.subdivide);
 
     const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
-    if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, out, progress, failures);
+    if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, csv, progress, failures);
 
     const std::vector<kb::BuildVariant> variants = kb::build_variants(opt);
     for (const Input &in : inputs)
@@ -197,8 +310,12 @@ int main(int argc, char **argv) {
                                             variants.size() +
                                         opt.compare_embree);
 
-    std::fprintf(out, "%s\n", kb::csv_header().c_str());
-    std::fflush(out);
+    std::string write_error;
+    const auto write_failed = [&] {
+        progress.note("kdrt-bench: " + write_error);
+        return 1;
+    };
+    if (!csv.line(kb::csv_header(), write_error)) return write_failed();
     common::ThreadScheduler build_pool(opt.build_threads);
     const uint32_t seed = 1;
     for (const Input &in : inputs) {
@@ -256,8 +373,7 @@ int main(int argc, char **argv) {
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
                     row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
-                    std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
-                    std::fflush(out);  // an interrupted run keeps every row written so far
+                    if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
                     progress.step(in.label + " " + variant.builder + (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
                                   " leaf " + std::to_string(leaf) + " " + row.intersector);
                 }
@@ -278,11 +394,20 @@ int main(int argc, char **argv) {
                 row.build_ms = peer.build_ms;
                 row.trace_ms = peer.trace_ms;
                 row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
-                std::fprintf(out, "%s\n", kb::csv_row(row).c_str());
-                std::fflush(out);
+                if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
                 progress.step(in.label + " embree");
             }
     }
     if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");
+    if (!csv.finish(error)) {
+        progress.note("kdrt-bench: " + error);
+        return 1;
+    }
     return failures ? 1 : 0;
+}
+
+}  // namespace
+
+int main(int argc, char **argv) {
+    return common::close_stdout("kdrt-bench", run(argc, argv));
 }

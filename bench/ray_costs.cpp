@@ -9,6 +9,7 @@
 
 #include "bench.hpp"
 #include "common/mesh_io.hpp"
+#include "common/output.hpp"
 #include "common/parse.hpp"
 #include "common/random.hpp"
 #include "ray_counts.hpp"
@@ -68,9 +69,7 @@ int fail(const std::string &message)
     return 1;
 }
 
-}  // namespace
-
-int main(int argc, char **argv)
+int run(int argc, char **argv)
 {
     std::vector<std::string> paths;
     unsigned width = 400, height = 400, repeat = 5, subdivide = 0;
@@ -149,4 +148,11 @@ int main(int argc, char **argv)
         kdrt_tree_free(tree);
     }
     return 0;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    return common::close_stdout("kdrt-ray-costs", run(argc, argv));
 }

@@ -10,6 +10,7 @@
 
 #include "common/atomic_file.hpp"      // common::write_file_atomically
 #include "common/mesh_io.hpp"          // common::load_mesh (Assimp, guarded against malformed files), common::torus
+#include "common/output.hpp"           // common::close_stdout
 #include "common/parse.hpp"            // common::parse_count, common::parse_size
 #include "common/thread_scheduler.hpp" // common::ThreadScheduler: the SAH build's tasks on every core
 #include "common/timing.hpp"           // common::Stopwatch, common::timed_parallel
@@ -239,11 +240,13 @@ static int run(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
+    int status = 1;
     try {
-        return run(argc, argv);
+        status = run(argc, argv);
     } catch (const std::bad_alloc &) {
-        return fail("out of memory");
+        status = fail("out of memory");
     } catch (const std::exception &e) {
-        return fail(e.what());
+        status = fail(e.what());
     }
+    return common::close_stdout("kdrt-render-mesh", status);
 }

@@ -17,6 +17,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -302,6 +304,32 @@ TEST_CASE("render: a failed write leaves no output and no temporary file", "[ren
     image.rgb.pop_back();
     CHECK_FALSE(kr::write_image(dir.path + "/short.png", image, false, error));
     CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
+}
+
+TEST_CASE("render: a read-only image is refused and kept, for root too, and a writable one is replaced", "[render][image]")
+{
+    TempDir dir;
+    kr::Image image;
+    image.width = 2, image.height = 2;
+    image.rgb.assign(12, 0.5f);
+    std::string error;
+    for (const char *name : {"/locked.png", "/locked.exr"}) {
+        const std::string path = dir.path + name;
+        FILE *f = std::fopen(path.c_str(), "w");
+        REQUIRE(f);
+        std::fputs("the old file", f);
+        std::fclose(f);
+        REQUIRE(chmod(path.c_str(), 0444) == 0);
+        CHECK_FALSE(kr::write_image(path, image, false, error));
+        CHECK(error.rfind("cannot write '" + path + "': it is read-only", 0) == 0);
+        std::ifstream in(path);
+        CHECK(std::string(std::istreambuf_iterator<char>(in), {}) == "the old file");
+        REQUIRE(chmod(path.c_str(), 0644) == 0);
+        CHECK(kr::write_image(path, image, false, error));
+        kr::Image back;
+        CHECK(kr::read_image(path, back, error));
+    }
+    CHECK(dir.entries() == (std::vector<std::string>{"locked.exr", "locked.png"}));
 }
 
 TEST_CASE("render: a missing mesh is an error naming it, and sizes must match for the RMSE", "[render]")

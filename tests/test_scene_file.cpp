@@ -11,6 +11,7 @@
 #include <fstream>
 #include <string>
 #include <unistd.h>
+#include <vector>
 
 namespace fs = std::filesystem;
 using kr::Scene;
@@ -335,6 +336,57 @@ TEST_CASE("values out of range are errors naming the range", "[scene_file]")
                 "setting MAX_BOUNCES: '1000' is not an integer from 0 to 64");
     check_error(minimal + "settings:\n  NSAMPLE: 4\n", 7, "unknown setting 'NSAMPLE' (known: NSAMPLES, MAX_BOUNCES,");
     check_error(minimal + "settings:\n  NSAMPLES: 0\n", 7, "setting NSAMPLES: '0' is not an integer from 1 to 65536");
+}
+
+TEST_CASE("a view direction that overflows or underflows is blamed on position and target, not up", "[scene_file]")
+{
+    // Each coordinate is finite; target - position, or its length, is not.
+    check_error("camera: {position: [-1e308, 0, 0], target: [1e308, 0, 0]}\n", 1,
+                "camera 'position' and 'target' are too far apart: target - position overflows, got [-1e308, 0, 0] "
+                "and [1e308, 0, 0]");
+    check_error("camera: {position: [0, 0, 0],\n         target: [1e200, 1e200, 0]}\n", 2, "too far apart");
+    check_error("camera: {position: [0, 0, 0], target: [1e-200, 0, 0]}\n", 1,
+                "camera 'target' is too close to its 'position'");
+    check_error("camera: {position: [0, 0, 5], target: [0, 0, 0], up: [0, 1e200, 1e200]}\n", 1,
+                "camera 'up' is too long: its length overflows");
+    // Large but representable: still a scene.
+    const Scene far = parse_good("camera: {position: [0, 0, 1e150], target: [0, 1e150, -1e150]}\n"
+                                 "materials: [{name: white}]\n"
+                                 "spheres: [{center: [0, 0, 0], radius: 1, material: white}]\n");
+    CHECK(far.camera.target.y == 1e150);
+}
+
+TEST_CASE("a token no YAML document can start with is an error, never an endless loop", "[scene_file]")
+{
+    // yaml-cpp 0.7 ends a document at such a token without reading it; asked for every document,
+    // it returns empty ones for ever.
+    check_error(",", 1, "YAML syntax error: unexpected ','");
+    check_error("{camera: {position: [0, 0, 5], target: [0, 0, 0]}}\n, more\n", 2, "YAML syntax error: unexpected ', more'");
+    check_error(minimal + "...\nspheres: []\n", 7, "YAML syntax error: unexpected 'spheres: []'");
+    check_error(minimal + "---\n", 7, "a second YAML document");
+
+    // Every input of one or two bytes, and of three from YAML's indicators and a few others: each
+    // is refused with one line (ctest's TIMEOUT catches a hang).
+    std::vector<std::string> inputs;
+    for (int a = 0; a < 256; ++a) {
+        inputs.push_back(std::string(1, char(a)));
+        for (int b = 0; b < 256; ++b) inputs.push_back(std::string{char(a), char(b)});
+    }
+    const std::string alphabet = ",[]{}:-?#&*!|>'\"%@` \n\ta0.";
+    for (char a : alphabet)
+        for (char b : alphabet)
+            for (char c : alphabet) inputs.push_back(std::string{a, b, c});
+    size_t refused = 0;
+    for (const std::string &text : inputs) {
+        Scene scene;
+        std::string error;
+        if (!kr::parse_scene_text(text, "tiny.yaml", "", scene, error) && error.rfind("tiny.yaml:", 0) == 0 &&
+            error.find('\n') == std::string::npos)
+            ++refused;
+        else
+            FAIL_CHECK("input of " << text.size() << " bytes: " << (error.empty() ? "accepted" : error));
+    }
+    CHECK(refused == inputs.size());
 }
 
 TEST_CASE("NaN and infinity are refused in every spelling", "[scene_file]")

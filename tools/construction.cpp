@@ -4,6 +4,7 @@
 //   kdrt-construction [TRIANGLES.txt] [--builder median|sah] [--leaf-size N] [--count N] [--seed S] -o OUT.json
 #include "common/atomic_file.hpp"  // common::write_file_atomically
 #include "construction.hpp"
+#include "common/output.hpp"  // common::close_stdout, common::write_flushed
 #include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "tree_inspect.hpp"
 
@@ -34,9 +35,7 @@ int fail(const std::string &message)
     return 1;
 }
 
-}  // namespace
-
-int main(int argc, char **argv)
+int run(int argc, char **argv)
 {
     std::string input, output;
     kdrt_builder builder = KDRT_BUILDER_MEDIAN;
@@ -82,11 +81,18 @@ int main(int argc, char **argv)
     if (!kdrt_tools::construct(positions, builder, uint32_t(leaf_size), construction, error)) return fail(error);
     const std::string json = kdrt_tools::construction_json(construction);
     if (output == "-") {
-        std::fputs(json.c_str(), stdout);
+        if (!common::write_flushed(stdout, json, "standard output", error)) return fail(error);
     } else {
         if (!common::write_file_atomically(output, json, error)) return fail(error);
         std::fprintf(stderr, "kdrt-construction: %zu triangles, %zu steps, %zu leaves -> %s\n", positions.size() / 9,
                      construction.steps.size(), construction.leaves.size(), output.c_str());
     }
     return 0;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    return common::close_stdout("kdrt-construction", run(argc, argv));
 }

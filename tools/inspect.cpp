@@ -4,6 +4,7 @@
 //
 //   kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json] [--boxes OUT.obj|OUT.ply]
 //                [--depth D] [--picture OUT.png] [--size WxH]
+#include "common/output.hpp"  // common::close_stdout
 #include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "tree_inspect.hpp"
 
@@ -147,5 +148,5 @@ int main(int argc, char **argv)
         else std::fprintf(stderr, "kdrt-inspect: picture -> %s\n", picture_path.c_str());
     }
     kdrt_tree_free(tree);
-    return status;
+    return common::close_stdout("kdrt-inspect", status);  // a report lost to a full disk is a failure
 }

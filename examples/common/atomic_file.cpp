@@ -1,5 +1,7 @@
 #include "common/atomic_file.hpp"
 
+#include "common/interrupt.hpp"
+
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -10,31 +12,42 @@
 
 namespace common {
 
+bool check_replaceable(const std::string &path, std::string &error)
+{
+    struct stat target;
+    if (stat(path.c_str(), &target) != 0) return true;  // absent (or unreachable: creating it says why)
+    if (!S_ISREG(target.st_mode)) {
+        error = "cannot write '" + path + "': it exists and is not a regular file";
+        return false;
+    }
+    if ((target.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) == 0 || (access(path.c_str(), W_OK) != 0 && errno == EACCES)) {
+        error = "cannot write '" + path + "': it is read-only (make it writable, or remove it, to replace it)";
+        return false;
+    }
+    return true;
+}
+
 bool write_atomically(const std::string &path,
                       const std::function<bool(const std::string &temporary, std::string &error)> &write,
                       std::string &error)
 {
+    if (!check_replaceable(path, error)) return false;
     const std::string what = "cannot write '" + path + "': ";
-    struct stat target;
-    if (stat(path.c_str(), &target) == 0 && !S_ISREG(target.st_mode)) {
-        error = what + "it exists and is not a regular file";
-        return false;
-    }
     // Unique among this process's writers (threads, animation frames) and other processes'.
     static std::atomic<unsigned> counter(0);
     const std::string tmp = path + ".tmp-" + std::to_string(long(getpid())) + "-" + std::to_string(counter++);
+    const int slot = remove_on_signal(tmp);
     std::string reason;
-    if (!write(tmp, reason)) {
+    bool done = write(tmp, reason);
+    if (!done) {
         error = what + reason;
-        std::remove(tmp.c_str());
-        return false;
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    } else if (std::rename(tmp.c_str(), path.c_str()) != 0) {
         error = what + "cannot rename " + tmp + " over it: " + std::strerror(errno);
-        std::remove(tmp.c_str());
-        return false;
+        done = false;
     }
-    return true;
+    if (!done) std::remove(tmp.c_str());
+    forget_on_signal(slot);
+    return done;
 }
 
 bool write_file_atomically(const std::string &path, const std::string &bytes, std::string &error)

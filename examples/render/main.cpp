@@ -1,5 +1,6 @@
 // kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
 // Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
+#include "common/output.hpp"  // common::close_stdout
 #include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "render.hpp"
 #include "scene_file.hpp"
@@ -263,13 +264,15 @@ int run(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
+    int status = 1;
     try {
-        return run(argc, argv);
+        status = run(argc, argv);
     } catch (const UsageError &e) {
-        return fail(e.message, 2);
+        status = fail(e.message, 2);
     } catch (const std::bad_alloc &) {
-        return fail("out of memory", 1);
+        status = fail("out of memory", 1);
     } catch (const std::exception &e) {
-        return fail(e.what(), 1);
+        status = fail(e.what(), 1);
     }
+    return common::close_stdout("kdrt-render", status);
 }

@@ -3,6 +3,7 @@
 #include "scene_file.hpp"
 
 #include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -316,8 +317,20 @@ bool Reader::read_camera(const Fields &top, Camera &camera)
         !number(f, "fov", "vertical degrees in (0, 180)", [](double v) { return v > 0 && v < 180; },
                 camera.fov_degrees, Need::optional))
         return false;
+    // The renderer normalizes target - position and up in double: their lengths must be finite
+    // and non-zero there, and a failure is the fault of the vectors that cause it.
     const Vec3 view = camera.target - camera.position;
-    if (!(length(view) > 0)) return fail(*f.find("target"), "camera 'target' must differ from its 'position'");
+    const YAML::Node &target = *f.find("target");
+    if (!std::isfinite(length(view)))
+        return fail(target, "camera 'position' and 'target' are too far apart: target - position overflows, got " +
+                                describe(*f.find("position")) + " and " + describe(target));
+    if (view.x == 0 && view.y == 0 && view.z == 0)
+        return fail(target, "camera 'target' must differ from its 'position'");
+    if (!(length(view) > 0))
+        return fail(target, "camera 'target' is too close to its 'position': the length of target - position "
+                            "underflows, got " + describe(*f.find("position")) + " and " + describe(target));
+    if (!std::isfinite(length(camera.up)))
+        return fail(*f.find("up"), "camera 'up' is too long: its length overflows, got " + describe(*f.find("up")));
     if (!(length(cross(normalize(view), normalize(camera.up))) > 1e-6))
         return fail(f.find("up") ? *f.find("up") : f.map,
                     "camera 'up' must be a non-zero vector not along the view direction, got " +
@@ -487,6 +500,60 @@ bool Reader::read_scene(const YAML::Node &root, Scene &scene)
            read_objects(top, scene, materials) && read_lights(top, scene) && read_settings(top, scene);
 }
 
+// Where a second YAML document starts, if the text has one: yaml-cpp's parser asked for two
+// documents, never for all of them. yaml-cpp 0.7's LoadAll loops for ever, allocating, on a
+// token no document can start with (a lone ',': upstream issue 1040), because each call returns
+// an empty document without reading it; Load reads one document and ignores the rest.
+class SecondDocument : public YAML::EventHandler {
+public:
+    // False when nothing follows the first document. `start` is the mark of the second's first
+    // token ('---', or the token the first document stopped at), `node` its first node's.
+    static bool find(const std::string &text, YAML::Mark &start, YAML::Mark &node)
+    {
+        std::istringstream in(text);
+        YAML::Parser parser(in);
+        SecondDocument events;
+        if (!parser.HandleNextDocument(events) || !parser) return false;
+        try {
+            parser.HandleNextDocument(events);
+        } catch (const YAML::Exception &) {  // a broken second document is still a second one
+        }
+        start = events.start_, node = events.node_;
+        return true;
+    }
+
+    void OnDocumentStart(const YAML::Mark &mark) override
+    {
+        if (++documents_ == 2) start_ = node_ = mark;
+    }
+    void OnDocumentEnd() override {}
+    void OnNull(const YAML::Mark &mark, YAML::anchor_t) override { first_node(mark); }
+    void OnAlias(const YAML::Mark &mark, YAML::anchor_t) override { first_node(mark); }
+    void OnScalar(const YAML::Mark &mark, const std::string &, YAML::anchor_t, const std::string &) override
+    {
+        first_node(mark);
+    }
+    void OnSequenceStart(const YAML::Mark &mark, const std::string &, YAML::anchor_t, YAML::EmitterStyle::value) override
+    {
+        first_node(mark);
+    }
+    void OnSequenceEnd() override {}
+    void OnMapStart(const YAML::Mark &mark, const std::string &, YAML::anchor_t, YAML::EmitterStyle::value) override
+    {
+        first_node(mark);
+    }
+    void OnMapEnd() override {}
+
+private:
+    void first_node(const YAML::Mark &mark)
+    {
+        if (documents_ == 2 && !seen_node_) node_ = mark, seen_node_ = true;
+    }
+    int documents_ = 0;
+    bool seen_node_ = false;
+    YAML::Mark start_, node_;
+};
+
 }  // namespace
 
 bool parse_scene_text(const std::string &text, const std::string &name_for_errors, const std::string &base_dir,
@@ -507,10 +574,17 @@ bool parse_scene_text(const std::string &text, const std::string &name_for_error
     Scene local;
     local.name = name_for_errors;
     try {
-        const std::vector<YAML::Node> documents = YAML::LoadAll(text);
-        if (documents.size() > 1) {
-            reader.fail(documents[1], "a second YAML document ('---'): a scene file holds one");
-        } else if (reader.read_scene(documents.empty() ? YAML::Node() : documents[0], local)) {
+        const YAML::Node root = YAML::Load(text);
+        YAML::Mark start, node;
+        if (SecondDocument::find(text, start, node)) {
+            const std::size_t from = std::min(text.size(), std::size_t(std::max(start.pos, 0)));
+            if (text.compare(from, 3, "---") == 0) {
+                reader.fail_at(node.line, "a second YAML document ('---'): a scene file holds one");
+            } else {  // a token yaml-cpp 0.7 ends the first document at (a stray ','), or more after '...'
+                const std::string rest = text.substr(from, std::min<std::size_t>(20, text.find('\n', from) - from));
+                reader.fail_at(start.line, "YAML syntax error: unexpected '" + rest + "'");
+            }
+        } else if (reader.read_scene(root, local)) {
             scene = std::move(local);
             return true;
         }
