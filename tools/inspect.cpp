@@ -52,7 +52,7 @@ int main(int argc, char **argv)
         const bool has_value = i + 1 < argc;
         if (arg == "--help" || arg == "-h") {
             std::fputs(usage, stdout);
-            return 0;
+            return common::close_stdout("kdrt-inspect", 0);
         } else if (arg == "--json") {
             json = true;
         } else if (arg == "--builder" && has_value) {
