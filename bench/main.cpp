@@ -6,10 +6,12 @@
 
 #include "bench.hpp"
 #include "embree_peer.hpp"
+#include "oracle/hard_cases.hpp"
 #include "oracle/reference.hpp"
 #include "common/atomic_file.hpp"
 #include "common/interrupt.hpp"
 #include "common/output.hpp"
+#include "common/parse.hpp"
 #include "common/thread_scheduler.hpp"
 #include "common/timing.hpp"
 
@@ -291,6 +293,24 @@ int run(int argc, char **argv) {
     for (const std::string &path : expand_inputs(args)) {
         Input in;
         in.label = upper_stem(path);
+        if (path.rfind("hostile:", 0) == 0) {  // hostile:KIND:TRIANGLES, generated
+            const size_t colon = path.find(':', 8);
+            const std::string kind = path.substr(8, colon == std::string::npos ? colon : colon - 8);
+            uint32_t triangles = 0;
+            const std::vector<std::string> kinds = oracle::hostile_kinds();
+            if (colon == std::string::npos || std::find(kinds.begin(), kinds.end(), kind) == kinds.end() ||
+                !common::parse_count(path.substr(colon + 1), KDRT_MAX_TRIANGLES, triangles) || triangles == 0) {
+                progress.note("kdrt-bench: skipping " + path + ": want hostile:KIND:TRIANGLES, KIND one of fan, cone, "
+                              "slivers, overlapping, identical");
+                ++failures;
+                continue;
+            }
+            in.mesh = oracle::hostile_mesh(kind, triangles, 1);
+            in.label = "HOSTILE_" + kind + "_" + std::to_string(triangles);
+            for (char &c : in.label) c = char(std::toupper(static_cast<unsigned char>(c)));
+            inputs.push_back(std::move(in));
+            continue;
+        }
         if (!common::load_mesh(path, in.mesh, error)) {
             progress.note("kdrt-bench: skipping " + path + ": " + error);
             ++failures;
