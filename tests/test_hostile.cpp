@@ -36,39 +36,6 @@ kt::TreePtr build(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf,
     return kt::TreePtr(tree);
 }
 
-// b is a's tree with every coordinate multiplied by scale (a power of two, or 1): the same nodes,
-// splits and references, in the same order, and the same SAH cost.
-void check_same_shape(const kdrt_tree *a, const kdrt_tree *b, double scale) {
-    kdrt_tree_stats sa, sb;
-    kdrt_tree_get_stats(a, &sa);
-    kdrt_tree_get_stats(b, &sb);
-    REQUIRE(sa.nodes == sb.nodes);
-    REQUIRE(sa.triangle_refs == sb.triangle_refs);
-    CHECK(sa.leaves == sb.leaves);
-    CHECK(sa.max_depth == sb.max_depth);
-    CHECK(sa.sah_cost == sb.sah_cost);
-    size_t differ = 0;
-    for (uint32_t i = 0; i < sa.nodes; ++i) {
-        kdrt_node_info x, y;
-        REQUIRE(kdrt_tree_node(a, i, &x) == KDRT_SUCCESS);
-        REQUIRE(kdrt_tree_node(b, i, &y) == KDRT_SUCCESS);
-        const bool same = x.is_leaf == y.is_leaf && x.axis == y.axis && double(x.split) * scale == double(y.split) &&
-                          x.above == y.above && x.triangle_count == y.triangle_count &&
-                          x.first_reference == y.first_reference;
-        if (!same && differ++ == 0) FAIL_CHECK("node " << i << " differs");
-    }
-    CHECK(differ == 0);
-    for (uint64_t r = 0; r < sa.triangle_refs; ++r) {
-        uint32_t ta = 0, tb = 1;
-        kdrt_tree_reference(a, uint32_t(r), &ta);
-        kdrt_tree_reference(b, uint32_t(r), &tb);
-        if (ta != tb) {
-            FAIL_CHECK("reference " << r << " differs");
-            break;
-        }
-    }
-}
-
 // The tree answers `rays` as the double-precision reference does, exactly as testing every
 // triangle does (the header's promise), and the rays hit something.
 void check_against_every_triangle(const common::Mesh &mesh, const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
@@ -107,7 +74,7 @@ TEST_CASE("hostile: a mesh scaled by 2^-60 to 2^60 gets the same tree, node for 
                                    << leaf << ", scaled by 2^" << power);
                     const double scale = std::ldexp(1.0, power);
                     kt::TreePtr big = build(scaled(mesh, scale), builder, leaf);
-                    check_same_shape(unit.get(), big.get(), scale);
+                    kt::check_same_shape(unit.get(), big.get(), scale);
                 }
             }
 }
@@ -156,7 +123,7 @@ TEST_CASE("hostile: fans, slivers, overlapping and identical triangles stay with
                            << " bytes a triangle, depth " << s.max_depth);
             common::ThreadScheduler pool(2);
             kt::TreePtr parallel = build(mesh, KDRT_BUILDER_SAH, leaf, pool.hooks());
-            check_same_shape(tree.get(), parallel.get(), 1.0);
+            kt::check_same_shape(tree.get(), parallel.get(), 1.0);
             check_against_every_triangle(mesh, tree.get(), kt::random_rays(kdrt_tree_bounds(tree.get()), 400, 13));
         }
     }

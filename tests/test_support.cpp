@@ -296,4 +296,35 @@ void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed) {
     WARN(log.str());
 }
 
+void check_same_shape(const kdrt_tree *a, const kdrt_tree *b, double scale) {
+    kdrt_tree_stats sa, sb;
+    kdrt_tree_get_stats(a, &sa);
+    kdrt_tree_get_stats(b, &sb);
+    REQUIRE(sa.nodes == sb.nodes);
+    REQUIRE(sa.triangle_refs == sb.triangle_refs);
+    CHECK(sa.leaves == sb.leaves);
+    CHECK(sa.max_depth == sb.max_depth);
+    CHECK(sa.sah_cost == sb.sah_cost);
+    size_t differ = 0;
+    for (uint32_t i = 0; i < sa.nodes; ++i) {
+        kdrt_node_info x, y;
+        REQUIRE(kdrt_tree_node(a, i, &x) == KDRT_SUCCESS);
+        REQUIRE(kdrt_tree_node(b, i, &y) == KDRT_SUCCESS);
+        const bool same = x.is_leaf == y.is_leaf && x.axis == y.axis && double(x.split) * scale == double(y.split) &&
+                          x.above == y.above && x.triangle_count == y.triangle_count &&
+                          x.first_reference == y.first_reference;
+        if (!same && differ++ == 0) FAIL_CHECK("node " << i << " differs");
+    }
+    CHECK(differ == 0);
+    for (uint64_t r = 0; r < sa.triangle_refs; ++r) {
+        uint32_t ta = 0, tb = 1;
+        kdrt_tree_reference(a, uint32_t(r), &ta);
+        kdrt_tree_reference(b, uint32_t(r), &tb);
+        if (ta != tb) {
+            FAIL_CHECK("reference " << r << " differs");
+            break;
+        }
+    }
+}
+
 }  // namespace kt

@@ -60,6 +60,11 @@ struct TreePtr {
 // builder defaults to the library's (KDRT_BUILDER_DEFAULT). REQUIREs success.
 TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_DEFAULT);
 
+// b is a's tree with every coordinate multiplied by scale (a power of two, or 1): the same
+// statistics, nodes, splits and references, in the same order, and the same SAH cost. FAILs with
+// the first node or reference that differs.
+void check_same_shape(const kdrt_tree *a, const kdrt_tree *b, double scale = 1.0);
+
 // Reports that the running test cannot run here (no mesh folder, say) and why; the test returns
 // right after. It prints "kdrt test skipped: WHY", which tests/CMakeLists.txt makes ctest show as
 // skipped, not passed (SKIP_REGULAR_EXPRESSION).
