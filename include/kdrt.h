@@ -104,7 +104,8 @@
          through a closed mesh. This holds whatever the compiler fuses into FMAs (-march=native,
          -ffp-contract=fast, Clang on ARM): the edge functions are formed in double, where the
          products of floats are exact. Being in double, they also keep their range: scenes
-         from 1e-30 to 1e30 across are traced as at 1.
+         from 1e-30 to 1e30 across are traced as at 1 (coordinates near the largest float,
+         3.4e38, whose differences overflow, are missed).
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it. It computes in float,
          where its products of up to three lengths overflow or underflow outside scenes of about
@@ -115,7 +116,8 @@
      a triangle from slipping through. The t of such a hit is a quotient of rounding errors: it
      lies where the ray is within the triangle's bounding box, and no closer to the truth.
      Both tests agree with a double-precision reference on the triangle and, to a few ulps, on t
-     everywhere else. There is no double-precision query: the vertices are floats already.
+     everywhere else. A hit's t, u and v are finite: a test whose values leave float's range
+     reports no hit. There is no double-precision query: the vertices are floats already.
      Zero-area triangles (coincident or collinear corners: the edges' cross product, evaluated
      in double precision, is exactly zero) are left out of the tree at build time and never hit;
      they are valid input, counted in kdrt_build_report.degenerate_triangles.
@@ -478,7 +480,8 @@ KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, 
 /* Where a hit lies: the point from its barycentrics (more accurate than org + t * dir, whose
    error grows with t) and the unit geometric normal, (p1 - p0) x (p2 - p0) normalised, so it faces
    the side from which the corners run counter-clockwise. Either output may be NULL. Returns 0 and
-   writes nothing when hit is not a hit on this tree's triangles. Reads the caller's buffers. */
+   writes nothing when hit is not a hit on this tree's triangles. The point lies within the
+   triangle's bounding box. Reads the caller's buffers. */
 KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
                               float normal[3]);
 /* Moves a surface point off its surface, along the geometric normal towards the side dir points
@@ -2484,6 +2487,9 @@ static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
                         const kdrt__ray_setup *s)
 {
     if (!(t >= s->tmin && t <= best->t)) return 0;
+    /* A distance or barycentric past float's range (a ray all but in the triangle's plane, or a
+       fast test's product overflowing) is no hit anyone can use. */
+    if (!kdrt__finite(t) || !kdrt__finite(u) || !kdrt__finite(v)) return 0;
     if (t == best->t && tri > best->triangle) return 0;
     best->t = t, best->u = u, best->v = v, best->triangle = tri;
     return 1;
@@ -2683,7 +2689,7 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
 {
     float p[3][3];
     double e1[3], e2[3], n[3], length;
-    int a;
+    int a, k;
     /* From the caller's buffers, which the tree borrows anyway: hit->triangle is the caller's
        index, and the tree's copy is in leaf order, so finding a triangle there would take an
        inverse map (4 more bytes a triangle) for a query made once per hit, not once per test. */
@@ -2691,9 +2697,15 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
     /* A hand-made hit may name a triangle the build skipped: check it as the build did. */
     if (kdrt__check_triangle(&tree->mesh, hit->triangle, p) != KDRT_SUCCESS) return 0;
     for (a = 0; a < 3; ++a) {
+        double x, lo = p[0][a], hi = p[0][a];
         e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
-        /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp */
-        if (point) point[a] = (float)(p[0][a] + hit->u * e1[a] + hit->v * e2[a]);
+        /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp. Kept
+           within the corners: rounded barycentrics (u + v a hair over 1) must not take it out
+           of the triangle's box, nor past the largest float when a corner lies there. */
+        x = p[0][a] + hit->u * e1[a] + hit->v * e2[a];
+        for (k = 1; k < 3; ++k)
+            lo = p[k][a] < lo ? p[k][a] : lo, hi = p[k][a] > hi ? p[k][a] : hi;
+        if (point) point[a] = (float)(x < lo ? lo : (x > hi ? hi : x));
     }
     kdrt__cross(e1, e2, n);
     length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);

@@ -10,6 +10,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -127,4 +128,73 @@ TEST_CASE("hostile: fans, slivers, overlapping and identical triangles stay with
             check_against_every_triangle(mesh, tree.get(), kt::random_rays(kdrt_tree_bounds(tree.get()), 400, 13));
         }
     }
+}
+
+namespace {
+
+// One triangle (corners c, 9 floats) and one ray; REQUIREs a successful build.
+kdrt_hit trace_one(const float c[9], const kdrt_ray &ray, kdrt_intersector intersector, kt::TreePtr &tree) {
+    kdrt_triangles m{};
+    m.positions = c, m.vertex_count = 3, m.triangle_count = 1;
+    kdrt_build_options o = kdrt_default_build_options();
+    o.intersector = intersector;
+    kdrt_tree *t = nullptr;
+    REQUIRE(kdrt_tree_build(&m, &o, &t, nullptr) == KDRT_SUCCESS);
+    tree = kt::TreePtr(t);
+    kdrt_hit h;
+    kdrt_intersect(t, &ray, &h);
+    return h;
+}
+
+bool finite_hit(const kdrt_hit &h) { return std::isfinite(h.t) && std::isfinite(h.u) && std::isfinite(h.v); }
+
+}  // namespace
+
+// Found by the C API's fuzz target: with float edge functions the watertight test returned hits at
+// t = infinity (and infinite or NaN barycentrics) on triangles 1e-20 or 1e13 across, and
+// kdrt_hit_surface an infinite point beside a corner at the largest float.
+TEST_CASE("hostile: queries at the ends of float's range give finite hits or none", "[hostile]") {
+    const float M = std::numeric_limits<float>::max();
+    for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST}) {
+        const bool watertight = intersector == KDRT_INTERSECTOR_WATERTIGHT;
+        INFO((watertight ? "watertight" : "fast"));
+        kt::TreePtr tree;
+        for (float s : {1e-22f, 1e-20f}) {  // straight down onto a tiny triangle: t = 1
+            const float c[9] = {0, 0, 0, s, 0, 0, 0, s, 0};
+            const kdrt_hit h = trace_one(c, kt::ray_of(s / 4, s / 4, 1, 0, 0, -1), intersector, tree);
+            INFO("triangle " << s << " across");
+            if (watertight) CHECK((h.triangle == 0 && h.t == 1.0f && h.u == 0.25f && h.v == 0.25f));
+            CHECK((h.triangle == KDRT_INVALID_ID || finite_hit(h)));
+        }
+        for (float s : {1e13f, 1e16f, 1e19f, 1e25f}) {  // a plane z = s seen from the origin: t = s
+            const float c[9] = {0, 0, s, s, 0, s, 0, s, s};
+            const kdrt_hit h = trace_one(c, kt::ray_of(0, 0, 0, 0.25f, 0.25f, 1), intersector, tree);
+            INFO("triangle at " << s);
+            if (watertight) CHECK((h.triangle == 0 && std::fabs(h.t - s) <= 1e-6 * s));
+            CHECK((h.triangle == KDRT_INVALID_ID || finite_hit(h)));
+        }
+        {  // all but in the triangle's plane x = 0.75 (dir.x subnormal): hit or miss, never t = inf
+            const float c[9] = {0.75f, 0.75f, 0.75f, 0.75f, 0.25f, -2, 0.75f, -2, -2};
+            const kdrt_hit h = trace_one(c, kt::ray_of(0.75f, 0.75f, 0.25f, 0x1p-147f, -2, -2), intersector, tree);
+            CHECK((h.triangle == KDRT_INVALID_ID || finite_hit(h)));
+        }
+        {  // corners at the largest float: differences overflow, so a miss is allowed, not inf
+            const float c[9] = {M, M, 0, -M, M, 0, M, -M, 0};
+            const kdrt_hit h = trace_one(c, kt::ray_of(M / 2, M / 2, 1, 0, 0, -1), intersector, tree);
+            CHECK((h.triangle == KDRT_INVALID_ID || finite_hit(h)));
+        }
+    }
+    // kdrt_hit_surface keeps the point in the triangle's box when u + v comes out a hair over 1.
+    const float c[9] = {0, 0, 0, M, 0, 0, M, M, 0};
+    kdrt_triangles m{};
+    m.positions = c, m.vertex_count = 3, m.triangle_count = 1;
+    kdrt_tree *t = nullptr;
+    REQUIRE(kdrt_tree_build(&m, nullptr, &t, nullptr) == KDRT_SUCCESS);
+    kt::TreePtr owner(t);
+    kdrt_hit h{1.0f, 1.0f, 1e-7f, 0};
+    float point[3], normal[3];
+    REQUIRE(kdrt_hit_surface(t, &h, point, normal));
+    CHECK(point[0] == M);
+    CHECK((point[1] >= 0 && point[1] <= M && point[2] == 0));
+    CHECK((normal[0] == 0 && normal[1] == 0 && normal[2] == 1));
 }
