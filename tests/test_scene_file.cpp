@@ -295,6 +295,15 @@ TEST_CASE("unknown, repeated and misplaced keys are errors at their line", "[sce
                 "light 'edge_u' applies only to quad lights");
 }
 
+TEST_CASE("text quoted from the file stays on the message's one line", "[scene_file]")
+{
+    // YAML's double quotes make any character, line breaks included, part of a key or a value.
+    check_error(minimal + "lights:\n  - {type: sphere, center: [0, 1, 0], \"ra\\ndius\": 2}\n", 7,
+                "light: unknown key 'ra\\ndius' (expected one of");
+    check_error(camera_line + "materials: [{name: \"a\\tb\\x01\"}]\nspheres: [{center: [0, 0, 0], radius: 1, material: c}]\n",
+                3, "no material named 'c' (defined: a\\tb\\x01)");
+}
+
 TEST_CASE("values of the wrong type are errors that show what was given", "[scene_file]")
 {
     check_error(camera_line + "materials: [{name: white}]\nspheres:\n  - {center: [0, 0, 0], radius: big, material: white}\n",

@@ -15,6 +15,9 @@ PACKAGES=(
   libopenexr-dev  # kdrt-render's OpenEXR output and --reference input (linear half or float)
   libembree-dev   # Embree 3: only kdrt-bench's --compare embree, the peer speed is stated against
   python3-matplotlib  # bench/plot_bench.py
+  clang               # CI's sanitizer build and the fuzz targets (tests/fuzz)
+  libclang-rt-14-dev  # Clang's ASan, UBSan and libFuzzer runtimes (clang only recommends them)
+  llvm                # llvm-symbolizer: function names and lines in the sanitizers' reports
 )
 
 usage() {

@@ -82,6 +82,25 @@ bool scalar_number(const YAML::Node &node, double &out)
     return true;
 }
 
+// A message on one line, whatever text from the file it quotes: YAML's double quotes can put any
+// character into a key or a value, so control characters are shown as escapes.
+std::string one_line(const std::string &text)
+{
+    std::string out;
+    for (const char c : text) {
+        const auto u = static_cast<unsigned char>(c);
+        if (c == '\n') out += "\\n";
+        else if (c == '\r') out += "\\r";
+        else if (c == '\t') out += "\\t";
+        else if (u < 0x20 || u == 0x7f) {
+            char hex[8];
+            std::snprintf(hex, sizeof hex, "\\x%02x", u);
+            out += hex;
+        } else out += c;
+    }
+    return out;
+}
+
 std::string quoted_list(const std::vector<std::string> &names)
 {
     std::string out;
@@ -98,7 +117,7 @@ public:
     // "file:line: message" from yaml-cpp's 0-based line; nodes it did not place (line -1) give line 1.
     bool fail_at(int line, const std::string &message)
     {
-        error_ = name_ + ":" + std::to_string(std::max(line, 0) + 1) + ": " + message;
+        error_ = one_line(name_ + ":" + std::to_string(std::max(line, 0) + 1) + ": " + message);
         return false;
     }
     bool fail(const YAML::Node &node, const std::string &message) { return fail_at(node.Mark().line, message); }

@@ -1,0 +1,463 @@
+// libFuzzer target: kdrt's tree API on a small mesh, build options and rays made from the input.
+// The mesh: a vertex buffer at some byte stride (exactly as long as the view says, so ASan sees any
+// read past it), optional indices (some out of range), coordinates that are often on a small grid
+// (shared edges, planar and axis-parallel cases) and sometimes NaN, infinite, huge, tiny,
+// subnormal or any bits; sometimes copies of it side by side. Options: builder,
+// intersector, leaf size, depth, flags, SAH costs (any float), sometimes an allocator that fails
+// one allocation and sometimes a scheduler. Rays: any floats, or aimed at a vertex or an edge of
+// the mesh. The implementation is compiled with KDRT_SAH_EXACT_MAX=8 (tests/fuzz/CMakeLists.txt),
+// so that small meshes take the SAH builder's binned sweep as well as its exact one.
+// Checked:
+//  - the build succeeds or fails with a NULL tree and nothing left allocated, and fails exactly
+//    where a leaf-size-0 build of the same mesh does (and as kdrt_aabb_of_triangles does);
+//  - the statistics agree with the nodes kdrt_tree_node() describes;
+//  - every hit lies in the ray's range on an existing triangle, kdrt_occluded() agrees with
+//    kdrt_intersect(), kdrt_hit_surface() gives a finite point and a unit normal;
+//  - every tree returns bit for bit what max_leaf_size = 0 (every triangle tested) returns, but
+//    for kdrt.h's one exception: a triangle the ray misses by less than the test's rounding error
+//    may be "hit" by leaf size 0 and never tested by the tree. Where the two differ, leaf size 0's
+//    triangle must not be one the double-precision oracle (bench/oracle) sees as surely hit, the
+//    tree's answer must be farther, and the oracle must accept it.
+#include "kdrt.h"
+#include "common/mesh_io.hpp"
+#include "oracle/reference.hpp"
+
+#include <fuzzer/FuzzedDataProvider.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace {
+
+// What is being checked (the ray, the triangle), printed with a failed check.
+std::string context;
+
+// A broken promise: say which, and abort, which libFuzzer reports as a crash with the input.
+#define FUZZ_CHECK(cond, ...)                                                              \
+    do {                                                                                   \
+        if (!(cond)) {                                                                     \
+            std::fprintf(stderr, "%s", context.c_str());                                   \
+            std::fprintf(stderr, "fuzz_tree: %s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
+            std::fprintf(stderr, __VA_ARGS__);                                             \
+            std::fprintf(stderr, "\n");                                                    \
+            std::abort();                                                                  \
+        }                                                                                  \
+    } while (0)
+
+float pick_float(FuzzedDataProvider &in) {
+    switch (in.ConsumeIntegralInRange<int>(0, 15)) {
+    case 0: return std::numeric_limits<float>::quiet_NaN();
+    case 1: return in.ConsumeBool() ? INFINITY : -INFINITY;
+    case 2: return in.ConsumeBool() ? 0.0f : -0.0f;
+    case 3: return (in.ConsumeBool() ? 1 : -1) * std::numeric_limits<float>::max();
+    case 4: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * std::numeric_limits<float>::denorm_min();
+    case 5: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * std::numeric_limits<float>::min();
+    case 6: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * 1e30f;
+    case 7: return float(in.ConsumeIntegralInRange<int>(-1000, 1000)) * 1e-3f + 1e5f;  // far from the origin
+    case 8: {
+        uint32_t bits = in.ConsumeIntegral<uint32_t>();
+        float f;
+        std::memcpy(&f, &bits, sizeof f);
+        return f;
+    }
+    default: return float(in.ConsumeIntegralInRange<int>(-8, 8)) * 0.25f;  // a grid: coincidences
+    }
+}
+
+// Counts live blocks; fails allocation number fail_at (1-based; 0: never).
+struct Heap {
+    size_t calls = 0, live = 0, fail_at = 0;
+    static void *alloc(void *user, size_t size) {
+        Heap *h = static_cast<Heap *>(user);
+        if (++h->calls == h->fail_at) return nullptr;
+        void *p = std::malloc(size);
+        if (p) ++h->live;
+        return p;
+    }
+    static void free(void *user, void *p) {
+        Heap *h = static_cast<Heap *>(user);
+        FUZZ_CHECK(p != nullptr, "free(NULL) through the allocator");
+        --h->live;
+        std::free(p);
+    }
+};
+
+// Runs the tasks on this thread, last first: any order must give the same tree.
+void run_reversed(void *, kdrt_task_fn task, void *data, uint32_t count) {
+    for (uint32_t i = count; i-- > 0;) task(data, i);
+}
+
+bool same_answer(const kdrt_hit &a, const kdrt_hit &b) {
+    if (a.triangle != b.triangle) return false;
+    return a.triangle == KDRT_INVALID_ID || (std::memcmp(&a.t, &b.t, sizeof a.t) == 0 &&
+                                             std::memcmp(&a.u, &b.u, sizeof a.u) == 0 &&
+                                             std::memcmp(&a.v, &b.v, sizeof a.v) == 0);
+}
+
+void print_hit(const char *what, const kdrt_hit &h) {
+    if (h.triangle == KDRT_INVALID_ID) std::fprintf(stderr, "  %s: miss\n", what);
+    else std::fprintf(stderr, "  %s: triangle %u t=%a u=%a v=%a\n", what, h.triangle, h.t, h.u, h.v);
+}
+
+struct Input {
+    std::unique_ptr<unsigned char[]> positions;  // exactly as many bytes as the view reads
+    std::vector<uint32_t> indices;
+    kdrt_triangles view{};
+};
+
+Input make_mesh(FuzzedDataProvider &in) {
+    Input m;
+    static const size_t strides[] = {0, 12, 13, 16, 20, 24, 4, 11};
+    const size_t stride = strides[in.ConsumeIntegralInRange<size_t>(0, 7)];
+    const uint32_t base_vertices = in.ConsumeIntegralInRange<uint32_t>(0, 24);
+    std::vector<float> coords(size_t(base_vertices) * 3);
+    for (float &x : coords) x = pick_float(in);
+    const bool indexed = in.ConsumeBool();
+    const uint32_t base_triangles = in.ConsumeIntegralInRange<uint32_t>(0, 16);
+    std::vector<uint32_t> base_indices(indexed ? size_t(base_triangles) * 3 : 0);
+    for (uint32_t &i : base_indices) {
+        switch (in.ConsumeIntegralInRange<int>(0, 15)) {
+        case 0: i = base_vertices; break;  // just out of range
+        case 1: i = in.ConsumeIntegral<uint32_t>(); break;
+        default: i = base_vertices ? in.ConsumeIntegralInRange<uint32_t>(0, base_vertices - 1) : 0;
+        }
+    }
+    // Sometimes a few copies side by side, 0.5 apart in x, and rarely (they are slow) hundreds:
+    // enough triangles for the SAH builder's parallel top levels (nodes of more than 4096).
+    const int roll = in.ConsumeIntegralInRange<int>(0, 1023);
+    const uint32_t copies = roll < 128 ? in.ConsumeIntegralInRange<uint32_t>(2, 8)
+                            : roll == 128 ? in.ConsumeIntegralInRange<uint32_t>(257, 320) : 1;
+    const uint32_t vertices = base_vertices * copies;
+    const size_t step = stride ? stride : 12;
+    const size_t bytes = vertices ? (vertices - 1) * step + 12 : 0;
+    if (bytes) m.positions.reset(new unsigned char[bytes]);
+    for (uint32_t c = 0; c < copies; ++c)
+        for (uint32_t v = 0; v < base_vertices; ++v) {
+            float p[3] = {coords[v * 3] + 0.5f * float(c), coords[v * 3 + 1], coords[v * 3 + 2]};
+            std::memcpy(m.positions.get() + (size_t(c) * base_vertices + v) * step, p, sizeof p);
+        }
+    for (uint32_t c = 0; c < copies; ++c)
+        for (uint32_t i : base_indices) m.indices.push_back(i < base_vertices ? i + c * base_vertices : i);
+    m.view.positions = reinterpret_cast<const float *>(m.positions.get());
+    m.view.position_stride = stride;
+    m.view.vertex_count = vertices;
+    m.view.indices = m.indices.empty() ? nullptr : m.indices.data();
+    uint32_t triangles = base_triangles * copies;
+    // A count beyond what a tree can address must be refused before the buffers are read.
+    if (in.ConsumeIntegralInRange<int>(0, 31) == 0) triangles = KDRT_MAX_TRIANGLES + in.ConsumeIntegralInRange<uint32_t>(1, 4);
+    m.view.triangle_count = triangles;
+    if (in.ConsumeIntegralInRange<int>(0, 31) == 0) m.view.positions = nullptr;
+    return m;
+}
+
+kdrt_build_options make_options(FuzzedDataProvider &in) {
+    kdrt_build_options o = kdrt_default_build_options();
+    o.builder = kdrt_builder(in.ConsumeIntegralInRange<int>(0, 3));
+    o.intersector = kdrt_intersector(in.ConsumeIntegralInRange<int>(0, 3));
+    static const uint32_t leaves[] = {1, 2, 3, 4, 8, 64, 0xFFFFFFFFu};
+    o.max_leaf_size = leaves[in.ConsumeIntegralInRange<int>(0, 6)];
+    o.max_depth = in.ConsumeBool() ? 0 : in.ConsumeIntegralInRange<uint32_t>(0, 70);
+    o.flags = in.ConsumeIntegralInRange<int>(0, 7) == 0 ? in.ConsumeIntegral<uint32_t>() : in.ConsumeIntegralInRange<uint32_t>(0, 1);
+    if (in.ConsumeBool()) {
+        o.sah_traversal_cost = in.ConsumeBool() ? 0.0f : pick_float(in);
+        o.sah_intersection_cost = in.ConsumeBool() ? 0.0f : pick_float(in);
+        o.sah_empty_bonus = in.ConsumeBool() ? 0.0f : pick_float(in);
+    }
+    return o;
+}
+
+kdrt_ray make_ray(FuzzedDataProvider &in, const std::vector<float> &points) {
+    kdrt_ray r;
+    for (float &x : r.org) x = pick_float(in);
+    if (!points.empty() && in.ConsumeBool()) {
+        // Towards a vertex, or a point on an edge: where watertightness and ties are decided.
+        const size_t a = in.ConsumeIntegralInRange<size_t>(0, points.size() / 3 - 1);
+        const size_t b = in.ConsumeIntegralInRange<size_t>(0, points.size() / 3 - 1);
+        const float s = float(in.ConsumeIntegralInRange<int>(0, 4)) * 0.25f;
+        for (int k = 0; k < 3; ++k) r.dir[k] = points[a * 3 + k] + s * (points[b * 3 + k] - points[a * 3 + k]) - r.org[k];
+    } else {
+        for (float &x : r.dir) x = pick_float(in);
+    }
+    r.tmin = in.ConsumeBool() ? 0.0f : pick_float(in);
+    r.tmax = in.ConsumeBool() ? INFINITY : pick_float(in);
+    return r;
+}
+
+// The caller's triangles as a common::Mesh for the oracle: the triangles a build would skip (an
+// index out of range, a non-finite corner) become a single point, which no ray hits.
+common::Mesh oracle_mesh(const kdrt_triangles &view) {
+    common::Mesh mesh;
+    const size_t step = view.position_stride ? view.position_stride : 12;
+    const unsigned char *base = reinterpret_cast<const unsigned char *>(view.positions);
+    for (uint32_t t = 0; t < view.triangle_count; ++t) {
+        float p[3][3] = {};
+        bool ok = true;
+        for (int k = 0; k < 3 && ok; ++k) {
+            const uint64_t v = view.indices ? view.indices[size_t(t) * 3 + k] : uint64_t(t) * 3 + k;
+            ok = v < view.vertex_count;
+            if (ok) std::memcpy(p[k], base + v * step, sizeof p[k]);
+            for (int a = 0; a < 3 && ok; ++a) ok = std::isfinite(p[k][a]);
+        }
+        for (int k = 0; k < 3; ++k)
+            for (int a = 0; a < 3; ++a) mesh.positions.push_back(ok ? p[k][a] : 0.0f);
+    }
+    return mesh;
+}
+
+bool is_hit(const kdrt_hit &h) { return h.triangle != KDRT_INVALID_ID; }
+
+// What kdrt_tree_node() says must add up to the statistics.
+void check_stats(const kdrt_tree *tree, const kdrt_triangles &view, const kdrt_build_report &report) {
+    kdrt_tree_stats s;
+    kdrt_tree_get_stats(tree, &s);
+    FUZZ_CHECK(uint64_t(s.triangles) + report.skipped_triangles + report.degenerate_triangles == view.triangle_count,
+               "%u in the tree, %u skipped, %u degenerate, of %u", s.triangles, report.skipped_triangles,
+               report.degenerate_triangles, view.triangle_count);
+    FUZZ_CHECK(kdrt_tree_node_count(tree) == s.nodes, "%u nodes counted, stats say %u", kdrt_tree_node_count(tree), s.nodes);
+    FUZZ_CHECK(s.nodes >= 1 && s.leaves >= 1 && s.leaves <= s.nodes, "%u nodes, %u leaves", s.nodes, s.leaves);
+    FUZZ_CHECK(s.max_depth <= KDRT_MAX_DEPTH, "depth %u", s.max_depth);
+    FUZZ_CHECK(std::isfinite(s.sah_cost) && s.sah_cost >= 0, "sah_cost %g", s.sah_cost);
+    FUZZ_CHECK(s.bytes > 0, "no bytes");
+    uint32_t leaves = 0, depth = 0;
+    uint64_t refs = 0;
+    for (uint32_t i = 0; i < s.nodes; ++i) {
+        kdrt_node_info n;
+        FUZZ_CHECK(kdrt_tree_node(tree, i, &n) == KDRT_SUCCESS, "node %u", i);
+        if (n.is_leaf) {
+            ++leaves;
+            depth = std::max(depth, n.depth);
+            FUZZ_CHECK(n.first_reference == refs, "leaf %u starts at reference %u, expected %llu", i, n.first_reference,
+                       (unsigned long long)refs);
+            refs += n.triangle_count;
+        } else {
+            FUZZ_CHECK(n.below == i + 1 && n.above > i + 1 && n.above < s.nodes && n.axis >= 0 && n.axis < 3,
+                       "node %u: below %u above %u axis %d", i, n.below, n.above, n.axis);
+        }
+    }
+    kdrt_node_info none;
+    FUZZ_CHECK(kdrt_tree_node(tree, s.nodes, &none) == KDRT_ERROR_INDEX_OUT_OF_RANGE, "node past the end");
+    FUZZ_CHECK(leaves == s.leaves && refs == s.triangle_refs && depth == s.max_depth,
+               "walked %u leaves, %llu references, depth %u; stats %u, %llu, %u", leaves, (unsigned long long)refs, depth,
+               s.leaves, (unsigned long long)s.triangle_refs, s.max_depth);
+    for (uint64_t r = 0; r < refs; ++r) {
+        uint32_t t;
+        FUZZ_CHECK(kdrt_tree_reference(tree, uint32_t(r), &t) == KDRT_SUCCESS && t < view.triangle_count, "reference %llu",
+                   (unsigned long long)r);
+    }
+    uint32_t t;
+    FUZZ_CHECK(refs >= 0xFFFFFFFFu || kdrt_tree_reference(tree, uint32_t(refs), &t) == KDRT_ERROR_INDEX_OUT_OF_RANGE,
+               "reference past the end");
+}
+
+std::string describe_ray(const kdrt_ray &ray) {
+    char s[256];
+    std::snprintf(s, sizeof s, "ray org=(%a, %a, %a) dir=(%a, %a, %a) tmin=%a tmax=%a\n", ray.org[0], ray.org[1], ray.org[2],
+                  ray.dir[0], ray.dir[1], ray.dir[2], ray.tmin, ray.tmax);
+    return s;
+}
+
+std::string describe_triangle(const common::Mesh &mesh, uint32_t triangle) {
+    double p[3][3];
+    mesh.corners(triangle, p);
+    char s[256];
+    std::snprintf(s, sizeof s, "triangle %u: (%a, %a, %a) (%a, %a, %a) (%a, %a, %a)\n", triangle, p[0][0], p[0][1],
+                  p[0][2], p[1][0], p[1][1], p[1][2], p[2][0], p[2][1], p[2][2]);
+    return s;
+}
+
+// Known, reported and left to the header: both triangle tests work in floats, and where their
+// intermediate values leave the float range, the hit's t, u and v (or the hit itself) can be
+// infinite, NaN or wrong while the true answer is an ordinary float: products past 2^128 (a
+// triangle 1e13 wide and as far from the ray's origin already: t's numerator is cubic in the
+// coordinates), or a determinant below 2^-126, whose inverse overflows (a triangle under 1e-19
+// across, or a ray within a subnormal of the triangle's plane). True when this ray and triangle
+// take either test there: the tests' own float quantities, formed here as kdrt.h forms them.
+bool beyond_float_range(const common::Mesh &mesh, uint32_t triangle, const kdrt_ray &ray) {
+    double corners[3][3];
+    mesh.corners(triangle, corners);
+    float p[3][3];
+    for (int k = 0; k < 3; ++k)
+        for (int a = 0; a < 3; ++a) p[k][a] = float(corners[k][a]);
+    const float *o = ray.org, *d = ray.dir;
+    bool out = false;
+    auto see = [&out](float x) { out = out || !(std::fabs(x) < 0x1p126f); };
+    auto tiny = [](float det) { return det != 0 && std::fabs(det) < 0x1p-125f; };
+    // Watertight: corners relative to the origin, sheared so that the ray runs along z.
+    int kz = 0;
+    for (int a = 1; a < 3; ++a)
+        if (std::fabs(d[a]) > std::fabs(d[kz])) kz = a;
+    const int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
+    const float sx = d[kx] / d[kz], sy = d[ky] / d[kz], sz = 1.0f / d[kz];
+    float x[3], y[3], z[3];
+    see(sz);
+    for (int k = 0; k < 3; ++k) {
+        const float dx = p[k][kx] - o[kx], dy = p[k][ky] - o[ky], dz = p[k][kz] - o[kz];
+        x[k] = dx - sx * dz, y[k] = dy - sy * dz, z[k] = sz * dz;
+        see(dx), see(dy), see(dz), see(x[k]), see(y[k]), see(z[k]);
+    }
+    const float e[3] = {float(double(x[2]) * y[1] - double(y[2]) * x[1]), float(double(x[0]) * y[2] - double(y[0]) * x[2]),
+                        float(double(x[1]) * y[0] - double(y[1]) * x[0])};
+    for (int k = 0; k < 3; ++k) see(e[k]), see(e[k] * z[k]);
+    see(e[0] * z[0] + e[1] * z[1] + e[2] * z[2]);
+    const float det_w = e[0] + e[1] + e[2];
+    // Moeller-Trumbore.
+    float e1[3], e2[3], tv[3], pv[3], qv[3];
+    for (int a = 0; a < 3; ++a) e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = o[a] - p[0][a];
+    pv[0] = d[1] * e2[2] - d[2] * e2[1], pv[1] = d[2] * e2[0] - d[0] * e2[2], pv[2] = d[0] * e2[1] - d[1] * e2[0];
+    qv[0] = tv[1] * e1[2] - tv[2] * e1[1], qv[1] = tv[2] * e1[0] - tv[0] * e1[2], qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    for (int a = 0; a < 3; ++a) see(e1[a]), see(e2[a]), see(tv[a]), see(pv[a]), see(qv[a]);
+    const float det_f = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    see(det_f);
+    see(tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]);
+    see(d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]);
+    see(e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]);
+    return out || tiny(det_w) || tiny(det_f);
+}
+
+// A hit of `tree` on `ray`, as kdrt.h describes one; `mesh` is oracle_mesh().
+void check_hit_shape(const kdrt_tree *tree, const kdrt_ray &ray, const kdrt_hit &h, const common::Mesh &mesh) {
+    if (!is_hit(h)) return;
+    const uint32_t triangles = mesh.triangle_count();
+    FUZZ_CHECK(h.triangle < triangles, "triangle %u of %u", h.triangle, triangles);
+    context = describe_ray(ray) + describe_triangle(mesh, h.triangle);
+    double p[3][3];
+    mesh.corners(h.triangle, p);
+    if (beyond_float_range(mesh, h.triangle, ray)) return;  // known: see there
+    FUZZ_CHECK(h.t >= std::max(ray.tmin, 0.0f) && h.t <= ray.tmax && std::isfinite(h.t), "t=%a outside [%a, %a]", h.t,
+               ray.tmin, ray.tmax);
+    FUZZ_CHECK(std::isfinite(h.u) && std::isfinite(h.v), "u=%a v=%a", h.u, h.v);
+    float point[3], normal[3];
+    FUZZ_CHECK(kdrt_hit_surface(tree, &h, point, normal) == 1, "kdrt_hit_surface refused a hit");
+    const double length = std::sqrt(double(normal[0]) * normal[0] + double(normal[1]) * normal[1] + double(normal[2]) * normal[2]);
+    FUZZ_CHECK(std::fabs(length - 1) < 1e-6, "normal (%a, %a, %a) of length %g", normal[0], normal[1], normal[2], length);
+    // The point lies in the triangle's box, up to rounding.
+    for (int a = 0; a < 3; ++a) {
+        const double lo = std::min({p[0][a], p[1][a], p[2][a]}), hi = std::max({p[0][a], p[1][a], p[2][a]});
+        const double slack = 0x1p-20 * std::max({std::fabs(lo), std::fabs(hi), hi - lo});
+        FUZZ_CHECK(point[a] >= lo - slack && point[a] <= hi + slack, "point (%a, %a, %a)", point[0], point[1], point[2]);
+    }
+    kdrt_ray next;
+    FUZZ_CHECK(kdrt_spawn_ray(tree, &h, ray.dir, &next) == 1, "kdrt_spawn_ray refused a hit");
+    FUZZ_CHECK(std::isfinite(next.org[0]) && std::isfinite(next.org[1]) && std::isfinite(next.org[2]),
+               "spawned origin (%a, %a, %a)", next.org[0], next.org[1], next.org[2]);
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    FuzzedDataProvider in(data, size);
+    context.clear();
+    Input mesh = make_mesh(in);
+    const kdrt_triangles &view = mesh.view;
+    kdrt_build_options options = make_options(in);
+    // Where every node holds every triangle (long ones, overlapping), a tree has as many nodes as
+    // its depth allows: on the copied meshes a depth of 16 keeps an input within a second.
+    if (view.triangle_count > 256 && (options.max_depth == 0 || options.max_depth > 16)) options.max_depth = 16;
+    Heap heap;
+    const bool counted = in.ConsumeBool();
+    if (counted) {
+        heap.fail_at = in.ConsumeBool() ? 0 : in.ConsumeIntegralInRange<size_t>(1, 64);
+        options.allocator = kdrt_allocator{&Heap::alloc, &Heap::free, &heap};
+    }
+    if (in.ConsumeBool()) options.scheduler = kdrt_scheduler{&run_reversed, nullptr};
+
+    // Leaf size 0, every triangle tested: the answer every tree must give.
+    kdrt_build_options brute_options = options;
+    brute_options.max_leaf_size = 0;
+    brute_options.allocator = kdrt_allocator{};
+    kdrt_tree *brute = nullptr;
+    kdrt_build_report brute_report;
+    const kdrt_result brute_result = kdrt_tree_build(&view, &brute_options, &brute, &brute_report);
+    FUZZ_CHECK((brute_result == KDRT_SUCCESS) == (brute != nullptr), "%s with tree %p", kdrt_result_string(brute_result),
+               static_cast<void *>(brute));
+
+    kdrt_tree *tree = reinterpret_cast<kdrt_tree *>(&heap);  // a failed build must set it to NULL
+    kdrt_build_report report;
+    const kdrt_result result = kdrt_tree_build(&view, &options, &tree, &report);
+    if (result != KDRT_SUCCESS) {
+        FUZZ_CHECK(tree == nullptr, "a failed build (%s) left a tree", kdrt_result_string(result));
+        FUZZ_CHECK(heap.live == 0, "a failed build (%s) left %zu blocks allocated", kdrt_result_string(result), heap.live);
+    }
+    // Leaf size 0 fails exactly where the tree does, but for running out of memory.
+    if (result != KDRT_ERROR_OUT_OF_MEMORY) {
+        FUZZ_CHECK(result == brute_result, "the tree: %s; leaf size 0: %s", kdrt_result_string(result),
+                   kdrt_result_string(brute_result));
+        FUZZ_CHECK(report.invalid_triangle == brute_report.invalid_triangle &&
+                       report.skipped_triangles == brute_report.skipped_triangles &&
+                       report.degenerate_triangles == brute_report.degenerate_triangles,
+                   "reports differ");
+    }
+    if (brute_result != KDRT_ERROR_INVALID_OPTION) {
+        kdrt_aabb box;
+        kdrt_build_report box_report;
+        const kdrt_result box_result = kdrt_aabb_of_triangles(&view, &box, &box_report);
+        FUZZ_CHECK(box_result == brute_result || (brute_result == KDRT_SUCCESS && (options.flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)),
+                   "kdrt_aabb_of_triangles: %s, the build: %s", kdrt_result_string(box_result), kdrt_result_string(brute_result));
+    }
+    if (!brute || !tree) {
+        kdrt_tree_free(brute);
+        kdrt_tree_free(tree);
+        FUZZ_CHECK(heap.live == 0, "%zu blocks left", heap.live);
+        return 0;
+    }
+    check_stats(brute, view, brute_report);
+    check_stats(tree, view, report);
+
+    // Rays, some aimed at the mesh's vertices and edges.
+    std::vector<float> points;
+    const common::Mesh as_mesh = oracle_mesh(view);
+    for (size_t i = 0; i + 2 < as_mesh.positions.size(); i += 3)
+        if (as_mesh.positions[i] != 0 || as_mesh.positions[i + 1] != 0 || as_mesh.positions[i + 2] != 0)
+            points.insert(points.end(), &as_mesh.positions[i], &as_mesh.positions[i] + 3);
+    std::unique_ptr<oracle::Oracle> oracle;  // made when first needed
+    const size_t live_before_queries = heap.live, calls_before_queries = heap.calls;
+    const int rays = in.ConsumeIntegralInRange<int>(1, 8);
+    for (int i = 0; i < rays; ++i) {
+        const kdrt_ray ray = make_ray(in, points);
+        kdrt_hit h0, h;
+        const int hit0 = kdrt_intersect(brute, &ray, &h0);
+        const int hit = kdrt_intersect(tree, &ray, &h);
+        FUZZ_CHECK(hit0 == is_hit(h0) && hit == is_hit(h), "return value and hit.triangle disagree");
+        FUZZ_CHECK(kdrt_occluded(brute, &ray) == hit0, "leaf size 0: kdrt_occluded disagrees with kdrt_intersect");
+        FUZZ_CHECK(kdrt_occluded(tree, &ray) == hit, "kdrt_occluded disagrees with kdrt_intersect");
+        check_hit_shape(brute, ray, h0, as_mesh);
+        check_hit_shape(tree, ray, h, as_mesh);
+        context.clear();
+        if (same_answer(h, h0)) continue;
+
+        // The one exception: leaf size 0 "hit" a triangle the ray misses by less than the test's
+        // rounding error, which lies where the tree never looks.
+        if (!oracle) oracle.reset(new oracle::Oracle(as_mesh));
+        const oracle::Reference ref = oracle->trace(ray);
+        oracle::Agreement tally;
+        oracle::check_hit(*oracle, ref, ray, h, tally);
+        const bool farther = !hit || h.t > h0.t || (h.t == h0.t && h.triangle > h0.triangle);
+        const bool exception = hit0 && farther && !(ref.sure_hit && ref.sure_triangle == h0.triangle) && tally.wrong == 0;
+        if (!exception && ((hit0 && beyond_float_range(as_mesh, h0.triangle, ray)) ||
+                           (hit && beyond_float_range(as_mesh, h.triangle, ray))))
+            continue;  // known: see beyond_float_range()
+        if (!exception) {
+            std::fprintf(stderr, "%s", describe_ray(ray).c_str());
+            print_hit("leaf size 0", h0);
+            print_hit("the tree", h);
+            for (const kdrt_hit *x : {&h0, &h})
+                if (is_hit(*x)) std::fprintf(stderr, "  %s", describe_triangle(as_mesh, x->triangle).c_str());
+            if (ref.sure_hit) std::fprintf(stderr, "  oracle: triangle %u at t=%.17g\n", ref.sure_triangle, ref.sure_t);
+            if (!tally.first_wrong.empty()) std::fprintf(stderr, "  oracle: %s\n", tally.first_wrong.c_str());
+        }
+        FUZZ_CHECK(exception, "the tree's answer differs from leaf size 0's");
+    }
+    FUZZ_CHECK(heap.live == live_before_queries && heap.calls == calls_before_queries, "a query allocated");
+    kdrt_tree_free(brute);
+    kdrt_tree_free(tree);
+    FUZZ_CHECK(heap.live == 0, "kdrt_tree_free left %zu blocks", heap.live);
+    return 0;
+}
