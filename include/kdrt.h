@@ -108,8 +108,9 @@
          3.4e38, whose differences overflow, are missed).
        KDRT_INTERSECTOR_FAST (Moeller & Trumbore 1997): a few operations less, but rays through
          an edge or vertex can pass between the triangles sharing it. It computes in float,
-         where its products of up to three lengths overflow or underflow outside scenes of about
-         1e-9 to 1e12 across: there it misses.
+         where its products of three lengths (the direction's, the triangle's edges, the
+         origin's distance) overflow or underflow unless each lies between about 1e-9 and 1e12:
+         beyond, its answers are not defined (usually misses).
      A ray lying exactly in a triangle's plane and meeting it may hit it or miss it: the
      watertight test shears with a rounded dir ratio, which turns the triangle seen edge-on into
      a sliver, and that freedom is what keeps a ray leaving a closed mesh through an edge of such

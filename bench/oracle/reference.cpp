@@ -121,16 +121,20 @@ double cosine(const double *tri, const double d[3], double det) {
 }
 
 // How far inside its edges a hit must be for the float test to agree. kEdgeMargin, unless the
-// float barycentrics are worse: (o - p0) . (d x e2) / det cancels when the origin is far from a
-// small triangle, leaving an error of a few roundings times cond |o - p0| / |edge|, where
-// cond = |d| |e1| |e2| / |det|. (Seen: a 0.0035-wide triangle of rocker-arm.obj from 1.1 away,
-// cond 8.5, with a float w of +3.9e-5 where the double one is -2.7e-5.)
+// float barycentrics are worse: the corners relative to the origin are rounded to floats, which
+// cancels when the origin is far from a small triangle (or a long sliver reaches far from it),
+// leaving an error of a few roundings times cond |o - p| / |edge|, with |o - p| the farthest
+// corner's distance and cond = |d| |e1| |e2| / |det|. (Seen: a 0.0035-wide triangle of
+// rocker-arm.obj from 1.1 away, cond 8.5, with a float w of +3.9e-5 where the double one is
+// -2.7e-5; a sliver 1.25 wide and 4e30 long hit 20 units off its side.)
 double edge_margin(const double *tri, const double o[3], const double d[3], double det) {
     const double *p0 = tri, *e1 = tri + 3, *e2 = tri + 6;
     auto len = [](double x, double y, double z) { return std::sqrt(x * x + y * y + z * z); };
     double l1 = len(e1[0], e1[1], e1[2]), l2 = len(e2[0], e2[1], e2[2]);
     double cond = len(d[0], d[1], d[2]) * l1 * l2 / std::fabs(det);
-    double reach = len(o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]);
+    double v[3] = {o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]};
+    double reach = std::max({len(v[0], v[1], v[2]), len(v[0] - e1[0], v[1] - e1[1], v[2] - e1[2]),
+                             len(v[0] - e2[0], v[1] - e2[1], v[2] - e2[2])});
     return std::max(Oracle::kEdgeMargin, 4 * 0x1p-24 * cond * reach / std::min(l1, l2));
 }
 }  // namespace
@@ -236,9 +240,62 @@ bool Oracle::in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) 
     return t >= blo - tol && t <= bhi + tol;
 }
 
+bool Oracle::rounding_contact(const kdrt_ray &ray, uint32_t triangle, double t) const {
+    if (size_t(triangle) * 9 >= tri_.size()) return false;
+    const double *p0 = &tri_[size_t(triangle) * 9], *e1 = p0 + 3, *e2 = p0 + 6;
+    const float *d = ray.dir;
+    // The test's frame, as kdrt.h sets it up: kz the axis of the largest |dir| (the first of
+    // equals), kx and ky the next two, swapped when dir[kz] < 0; the shear in float.
+    int kz = 0;
+    for (int a = 1; a < 3; ++a)
+        if (std::fabs(d[a]) > std::fabs(d[kz])) kz = a;
+    int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
+    if (d[kz] < 0) std::swap(kx, ky);
+    if (d[kz] == 0) return false;
+    const float sx = d[kx] / d[kz], sy = d[ky] / d[kz], sz = 1.0f / d[kz];
+    // Each corner's sheared coordinates, exactly, and how far the float ones can be from them:
+    // a rounding of the difference, the product and the result, each at most 2^-24 of its size.
+    const double u = 0x1p-22;  // four such roundings, with room to spare
+    double x[3], y[3], z[3], dxe[3], dye[3], dze[3];
+    for (int k = 0; k < 3; ++k) {
+        const double *add = k == 0 ? nullptr : (k == 1 ? e1 : e2);
+        double p[3];
+        for (int a = 0; a < 3; ++a) p[a] = p0[a] + (add ? add[a] : 0.0);
+        const double dx = p[kx] - ray.org[kx], dy = p[ky] - ray.org[ky], dz = p[kz] - ray.org[kz];
+        x[k] = dx - sx * dz, y[k] = dy - sy * dz, z[k] = sz * dz;
+        dxe[k] = u * (std::fabs(dx) + std::fabs(sx * dz)), dye[k] = u * (std::fabs(dy) + std::fabs(sy * dz));
+        dze[k] = u * std::fabs(z[k]);
+    }
+    // The edge functions (kdrt forms them in double from the float coordinates) and their
+    // error bounds.
+    double e[3], err[3];
+    for (int i = 0; i < 3; ++i) {
+        const int j = (i + 1) % 3, k = (i + 2) % 3;  // e[i] = x[k] y[j] - y[k] x[j], i's opposite edge
+        e[i] = x[k] * y[j] - y[k] * x[j];
+        err[i] = (std::fabs(x[k]) + dxe[k]) * dye[j] + dxe[k] * std::fabs(y[j]) + (std::fabs(y[k]) + dye[k]) * dxe[j] +
+                 dye[k] * std::fabs(x[j]) + 0x1p-50 * (std::fabs(x[k] * y[j]) + std::fabs(y[k] * x[j]));
+    }
+    const bool may_be_inside = (e[0] >= -err[0] && e[1] >= -err[1] && e[2] >= -err[2]) ||
+                               (e[0] <= err[0] && e[1] <= err[1] && e[2] <= err[2]);
+    if (!may_be_inside) return false;
+    const double det = e[0] + e[1] + e[2], det_err = err[0] + err[1] + err[2];
+    const double z_lo = std::min({z[0] - dze[0], z[1] - dze[1], z[2] - dze[2]});
+    const double z_hi = std::max({z[0] + dze[0], z[1] + dze[1], z[2] + dze[2]});
+    const double slack = 0x1p-22 * std::max(std::fabs(z_lo), std::fabs(z_hi));
+    if (std::fabs(det) <= det_err)  // degenerate within the rounding: any convex combination
+        return t >= z_lo - slack && t <= z_hi + slack;
+    const double exact = (e[0] * z[0] + e[1] * z[1] + e[2] * z[2]) / det;
+    double spread = 0;
+    for (int k = 0; k < 3; ++k) spread += err[k] * std::fabs(z[k] - exact) + std::fabs(e[k]) * dze[k];
+    spread /= std::fabs(det) - det_err;
+    return std::fabs(t - exact) <= spread + t_tolerance(ray, exact, triangle);
+}
+
 double Oracle::expected_t(const kdrt_ray &ray, uint32_t triangle, double kdrt_t) const {
     double t = possible_t(ray, triangle);
-    if (std::isnan(t) && in_plane_contact(ray, triangle, kdrt_t)) t = kdrt_t;  // see kdrt.h
+    const bool close = !std::isnan(t) && std::fabs(kdrt_t - t) <= t_tolerance(ray, t, triangle);
+    // See kdrt.h: a ray in the triangle's plane, or within its test's rounding of a hit.
+    if (!close && (in_plane_contact(ray, triangle, kdrt_t) || rounding_contact(ray, triangle, kdrt_t))) t = kdrt_t;
     return t;
 }
 

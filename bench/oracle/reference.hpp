@@ -42,9 +42,18 @@ public:
     // double precision), its line meets the triangle, and `t` is where the ray is within the
     // triangle's bounding box: what kdrt.h promises of such a hit (see there).
     bool in_plane_contact(const kdrt_ray &ray, uint32_t triangle, double t) const;
+    // True when kdrt's watertight test, rounding as it does, may report this hit: it moves the
+    // corners to the ray's origin and shears them so the ray runs along an axis, in float, each
+    // coordinate within a few roundings of its terms (which, for corners far from the origin,
+    // can be far more than the triangle is wide), then decides exactly. True when some such
+    // rounding puts the ray in the triangle and t is what the test then computes: a convex
+    // combination of the corners' distances along the ray where the sheared triangle is
+    // degenerate within the rounding (a ray within rounding of the triangle's plane), else the
+    // exact t within the rounding's effect on it.
+    bool rounding_contact(const kdrt_ray &ray, uint32_t triangle, double t) const;
     // The t a kdrt hit on this triangle reported as kdrt_t should be near: possible_t(), or
-    // kdrt_t itself for an in-plane contact; NaN when no such hit is possible. What every check
-    // of a kdrt hit asks.
+    // kdrt_t itself for an in-plane or rounding contact; NaN when no such hit is possible. What
+    // every check of a kdrt hit asks.
     double expected_t(const kdrt_ray &ray, uint32_t triangle, double kdrt_t) const;
     // Tolerance on t for a well-conditioned hit, and for a hit on a given triangle.
     double t_tolerance(const kdrt_ray &ray, double t) const;
