@@ -125,6 +125,8 @@ int main(int argc, char **argv)
     const kdrt_result built = kdrt_tree_build(&view, &options, &tree, &build_report);
     report.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     if (built != KDRT_SUCCESS) return fail(std::string("cannot build the tree: ") + kdrt_result_string(built));
+    report.degenerate_triangles = build_report.degenerate_triangles;
+    report.skipped_triangles = build_report.skipped_triangles;
 
     int status = 0;
     std::vector<kdrt_tools::DepthBox> boxes;
@@ -132,8 +134,6 @@ int main(int argc, char **argv)
         status = fail(error);
     } else {
         std::fputs((json ? kdrt_tools::report_json(report) : kdrt_tools::report_text(report)).c_str(), stdout);
-        if (build_report.skipped_triangles && !json)
-            std::printf("skipped: %u invalid triangles\n", build_report.skipped_triangles);
     }
     if (status == 0 && (!boxes_path.empty() || !picture_path.empty()) &&
         !kdrt_tools::boxes_to_depth(tree, uint32_t(depth), boxes, error))

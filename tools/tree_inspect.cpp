@@ -122,7 +122,8 @@ std::string report_text(const TreeReport &r)
     t += "builder: " + r.builder + ", leaf size " + std::to_string(r.leaf_size) + ", built in " +
          format("%.2f", r.build_ms) + " ms on 1 thread\n";
     t += "triangles: " + std::to_string(s.triangles) + " in the tree, of " + std::to_string(r.input_triangles) +
-         " (zero-area ones are left out)\n";
+         " (left out: " + std::to_string(r.degenerate_triangles) + " zero-area, " +
+         std::to_string(r.skipped_triangles) + " with a NaN or infinite corner)\n";
     t += "nodes: " + std::to_string(s.nodes) + " (" + std::to_string(r.inner_nodes) + " inner, " +
          std::to_string(r.leaves) + " leaves of which " + std::to_string(r.empty_leaves) + " empty)\n";
     t += "depth: " + std::to_string(s.max_depth) + " (deepest leaf)\n";
@@ -163,6 +164,8 @@ std::string report_json(const TreeReport &r)
     j += "  \"build_ms\": " + json_number(r.build_ms) + ",\n";
     j += "  \"input_triangles\": " + std::to_string(r.input_triangles) + ",\n";
     j += "  \"triangles\": " + std::to_string(s.triangles) + ",\n";
+    j += "  \"degenerate_triangles\": " + std::to_string(r.degenerate_triangles) + ",\n";
+    j += "  \"skipped_triangles\": " + std::to_string(r.skipped_triangles) + ",\n";
     j += "  \"nodes\": " + std::to_string(s.nodes) + ",\n";
     j += "  \"inner_nodes\": " + std::to_string(r.inner_nodes) + ",\n";
     j += "  \"leaves\": " + std::to_string(r.leaves) + ",\n";

@@ -19,6 +19,9 @@ struct TreeReport {
     std::string builder;     // "median" or "sah"
     uint32_t leaf_size = 0;
     uint32_t input_triangles = 0;
+    // Left out of the tree (kdrt_build_report): zero-area ones, and, under
+    // KDRT_BUILD_SKIP_INVALID_TRIANGLES, those with a NaN or infinite corner.
+    uint32_t degenerate_triangles = 0, skipped_triangles = 0;
     double build_ms = 0;     // kdrt_tree_build on the calling thread
     kdrt_tree_stats stats{}; // kdrt_tree_get_stats
     // From the walk:
