@@ -1,13 +1,25 @@
 #include "common/mesh_io.hpp"
 
+#include "common/heap_budget.hpp"
+#include "common/regular_file.hpp"
+
+#include <assimp/DefaultIOStream.h>
+#include <assimp/DefaultIOSystem.h>
+#include <assimp/DefaultLogger.hpp>
 #include <assimp/Importer.hpp>
+#include <assimp/LogStream.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
+#include <new>
+#include <set>
 #include <unordered_map>
 
 namespace common {
@@ -31,24 +43,119 @@ void Mesh::corners(uint32_t triangle, double p[3][3]) const {
 
 namespace {
 
-// Assimp's PLY reader never returns on a file that ends inside its header (no end_header line).
-bool ply_header_complete(const std::string &path) {
-    FILE *file = std::fopen(path.c_str(), "rb");
-    if (!file) return true; // Assimp reports it
+// Two PLY headers Assimp's reader never finishes with: one that does not end (no end_header
+// line), and elements claimed by the billion with no data (a 58-byte file with "element vertex
+// 1000000000" and no properties keeps it looping for minutes). Any element takes at least a byte
+// of the file, or an ASCII line, so no count may exceed the file's size.
+bool check_ply_header(const std::string &path, std::string &error) {
+    struct stat st;
+    std::string why;
+    FILE *file = open_regular_file(path.c_str(), st, why);
+    if (!file) return true; // reported when Assimp opens it
     char head[4] = {0, 0, 0, 0};
-    bool ok = true;
+    std::string header;
     if (std::fread(head, 1, 3, file) == 3 && std::strncmp(head, "ply", 3) == 0) {
-        std::string header;
         char buffer[4096];
         size_t n;
         while (header.find("end_header") == std::string::npos && header.size() < (1u << 20) &&
                (n = std::fread(buffer, 1, sizeof buffer, file)) > 0)
             header.append(buffer, n);
-        ok = header.find("end_header") != std::string::npos;
+        if (header.find("end_header") == std::string::npos) error = "malformed PLY file: its header has no end_header line";
     }
     std::fclose(file);
-    return ok;
+    header.resize(std::min(header.size(), header.find("end_header")));
+    for (size_t at = header.find("\nelement "); error.empty() && at != std::string::npos; at = header.find("\nelement ", at + 1)) {
+        char name[64] = "";
+        unsigned long long count = 0;
+        if (std::sscanf(header.c_str() + at, "\nelement %63s %llu", name, &count) == 2 && count > uint64_t(st.st_size))
+            error = "malformed PLY file: its header claims " + std::to_string(count) + " " + name +
+                    " elements, more than its " + std::to_string(st.st_size) + " bytes can hold";
+    }
+    return error.empty();
 }
+
+// Assimp's file access for one load: only regular files open (any other "does not exist", so a
+// FIFO or device named by an OBJ's mtllib or a glTF's buffer cannot block the reader or feed it
+// forever), and each distinct file opened raises the heap budget by `factor` times its size: the
+// budget follows every byte the reader is given, .bin buffers and .mtl files included.
+class GuardedFiles : public Assimp::DefaultIOSystem {
+public:
+    explicit GuardedFiles(uint64_t factor) : factor_(factor) {}
+    void charge(HeapBudget *budget) { budget_ = budget; }  // the budget the files raise, from now on
+
+    bool Exists(const char *path) const override
+    {
+        struct stat st;
+        return ::stat(path, &st) == 0 && S_ISREG(st.st_mode);
+    }
+
+    Assimp::IOStream *Open(const char *path, const char *mode) override
+    {
+        if (std::strpbrk(mode, "wa+")) return nullptr;  // readers only read
+        struct stat st;
+        std::string why;
+        FILE *file = open_regular_file(path, st, why);
+        if (!file) return nullptr;
+        if (opened_.insert({uint64_t(st.st_dev), uint64_t(st.st_ino)}).second) {
+            bytes_ += uint64_t(st.st_size);
+            if (budget_) budget_->raise(factor_ * uint64_t(st.st_size));
+        }
+        return new Stream(file, path);
+    }
+
+    uint64_t bytes() const { return bytes_; }  // of the distinct files opened
+
+private:
+    struct Stream : Assimp::DefaultIOStream {  // its constructor from a FILE* is protected
+        Stream(FILE *file, const std::string &name) : DefaultIOStream(file, name) {}
+    };
+    const uint64_t factor_;
+    HeapBudget *budget_ = nullptr;
+    uint64_t bytes_ = 0;
+    std::set<std::pair<uint64_t, uint64_t>> opened_;  // (device, inode)
+};
+
+// Errors some of Assimp's readers log, and then carry on, after changing the geometry they read
+// (from Assimp 5.2's source). Assimp logs many harmless things as errors too (an OBJ's missing
+// material, an unsupported animation track: 23 of its test models that load log some), which are
+// not these.
+const char *const geometry_errors[] = {
+    "OFF: Vertex index is out of range",                       // clamped to the last vertex
+    "OFF: The number of verts in the header is incorrect",     // the missing ones left at the origin
+    "OFF: The number of faces in the header is incorrect",     // the missing ones left empty
+    "OFF: Faces with zero indices aren't allowed",             // the face dropped
+    "STL: a facet with more than 3 vertices has been found",   // the extra corners dropped
+    "OBJ: Not supported token in face description detected",   // the rest of the face dropped
+};
+
+// Catches those errors in Assimp's log, the only place they appear.
+class ErrorLog : public Assimp::LogStream {
+public:
+    ErrorLog(std::string &first, unsigned &count) : first_(first), count_(count) {}
+    void write(const char *message) override
+    {
+        const char *text = std::strstr(message, ": ");  // after Assimp's "Error, T0" prefix
+        text = text ? text + 2 : message;
+        for (const char *known : geometry_errors)
+            if (std::strncmp(text, known, std::strlen(known)) == 0 && !count_++) first_ = known;
+    }
+
+private:
+    std::string &first_;
+    unsigned &count_;
+};
+
+// Assimp's logger is one global object: loads take turns while it exists (load_mesh's mutex).
+struct LoggedErrors {
+    std::string first;
+    unsigned count = 0;
+    LoggedErrors()
+    {
+        Assimp::DefaultLogger::create(nullptr, Assimp::Logger::NORMAL, 0);
+        Assimp::DefaultLogger::get()->attachStream(new ErrorLog(first, count), Assimp::Logger::Err);
+    }
+    ~LoggedErrors() { Assimp::DefaultLogger::kill(); }
+};
 
 // Faces Assimp's readers leave behind on malformed input, which its triangulation step would
 // abort on (Debian builds Assimp with its internal assertions on): a face without indices, an
@@ -84,16 +191,11 @@ bool check_faces(const aiScene *scene, std::string &error) {
     return true;
 }
 
-}  // namespace
-
-bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
-    if (!ply_header_complete(path)) {
-        error = "malformed PLY file: its header has no end_header line";
-        return false;
-    }
+// Reads, checks and copies out, under the caller's heap budget and error log.
+bool read_mesh(Assimp::Importer &importer, const std::string &path, Mesh &out, std::string &error)
+{
     // Read and validate first, check what Assimp's validation lets through, then triangulate,
     // merge identical vertices and bake the node transforms into the vertices.
-    Assimp::Importer importer;
     const aiScene *scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
     if (!scene) {
         error = importer.GetErrorString();
@@ -111,15 +213,23 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
         if (error.empty()) error = "Assimp could not process it";
         return false;
     }
+    size_t vertices = 0, triangles = 0;
+    for (unsigned mi = 0; mi < scene->mNumMeshes; ++mi) {
+        const aiMesh *mesh = scene->mMeshes[mi];
+        vertices += mesh->mNumVertices;
+        for (unsigned f = 0; f < mesh->mNumFaces; ++f) triangles += mesh->mFaces[f].mNumIndices == 3;
+    }
+    if (vertices > KDRT_MAX_TRIANGLES) {
+        error = "too many vertices";
+        return false;
+    }
     out = Mesh();
     out.name = std::filesystem::path(path).stem().string();
+    out.positions.reserve(3 * vertices);  // exact sizes: no doubling past the budget
+    out.indices.reserve(3 * triangles);
     for (unsigned mi = 0; mi < scene->mNumMeshes; ++mi) {
         const aiMesh *mesh = scene->mMeshes[mi];
         const size_t base = out.vertex_count();
-        if (base + mesh->mNumVertices > KDRT_MAX_TRIANGLES) {
-            error = "too many vertices";
-            return false;
-        }
         for (unsigned v = 0; v < mesh->mNumVertices; ++v)
             out.positions.insert(out.positions.end(), {mesh->mVertices[v].x, mesh->mVertices[v].y, mesh->mVertices[v].z});
         for (unsigned f = 0; f < mesh->mNumFaces; ++f)
@@ -130,6 +240,81 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
         error = "it holds no triangles";
         return false;
     }
+    return true;
+}
+
+// 12000000016 -> "12,000,000,016"
+std::string grouped(uint64_t n)
+{
+    const std::string digits = std::to_string(n);
+    std::string out;
+    for (size_t i = 0; i < digits.size(); ++i) {
+        if (i && (digits.size() - i) % 3 == 0) out += ',';
+        out += digits[i];
+    }
+    return out;
+}
+
+}  // namespace
+
+bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
+    return load_mesh(path, out, error, mesh_heap_factor, mesh_heap_floor, nullptr);
+}
+
+bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
+               MeshLoadStats *stats) {
+    if (stats) *stats = MeshLoadStats();
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0) {
+        error = errno == ENOENT ? "no such file" : std::strerror(errno);
+        return false;
+    }
+    if (!(error = not_regular(st)).empty()) return false;
+    if (!check_ply_header(path, error)) return false;
+
+    static std::mutex one_at_a_time;
+    const std::lock_guard<std::mutex> lock(one_at_a_time);
+    LoggedErrors logged;
+    Assimp::Importer importer;
+    GuardedFiles *files = new GuardedFiles(heap_factor);
+    importer.SetIOHandler(files);  // the importer owns it
+    Mesh mesh;
+    bool ok;
+    uint64_t refused, in_use, limit;
+    {
+        // Assimp allocates what a header claims before it reads the data (a 34-byte OFF file asks
+        // for 28 GB): what it allocates is capped in proportion to the bytes it is given.
+        HeapBudget budget(heap_floor);
+        files->charge(&budget);
+        try {
+            ok = read_mesh(importer, path, mesh, error);
+        } catch (const std::bad_alloc &) {  // refused in our own copy; Assimp catches its own
+            ok = false;
+        }
+        files->charge(nullptr);
+        refused = budget.refused(), in_use = budget.live_at_refusal(), limit = budget.limit();
+        if (stats) stats->file_bytes = files->bytes(), stats->peak_heap_bytes = budget.peak();
+    }
+    const uint64_t file_bytes = files->bytes();
+    if (refused) {
+        const std::string allowed = " that " + grouped(file_bytes) + " bytes of mesh file may take (" +
+                                    std::to_string(heap_factor) + " times their size, plus " +
+                                    std::to_string(heap_floor >> 20) + " MiB)";
+        if (refused >= HeapBudget::large_request)
+            error = "refused: reading it asked for " + grouped(refused) + " bytes of memory" +
+                    (refused > limit ? std::string(" at once") : " with " + grouped(in_use) + " in use") +
+                    ", more than the " + grouped(limit) + allowed;
+        else
+            error = "refused: reading it took more than twice the " + grouped(limit) + " bytes of memory" + allowed;
+        return false;
+    }
+    if (!ok) return false;
+    if (logged.count) {
+        error = "malformed file: " + logged.first +
+                (logged.count > 1 ? " (and " + std::to_string(logged.count - 1) + " more errors)" : "");
+        return false;
+    }
+    out = std::move(mesh);
     return true;
 }
 

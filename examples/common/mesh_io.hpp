@@ -22,8 +22,27 @@ struct Mesh {
 };
 
 // Any file Assimp reads (OFF, OBJ, PLY, STL, glTF), all its meshes joined, polygons triangulated;
-// name is the file stem. false with Assimp's message when the file is missing or malformed.
+// name is the file stem. false with a one-line message when the path is missing or not a regular
+// file, when Assimp fails or logs one of the errors that mean it changed the geometry (a
+// malformed file), or when reading it would take more heap than mesh_heap_factor times the bytes
+// of the files Assimp opens for it plus mesh_heap_floor (twice that for requests under 1 MiB; the
+// message names the request). Loads take turns, and each replaces Assimp's DefaultLogger while
+// it runs: the logger is global. tools/README.md ("Mesh files") says what is refused and why.
 bool load_mesh(const std::string &path, Mesh &out, std::string &error);
+
+// The heap a load may take: this many times the size of the files it reads, plus the floor.
+// tools/README.md gives the ratios measured on real meshes.
+constexpr uint64_t mesh_heap_factor = 128;
+constexpr uint64_t mesh_heap_floor = uint64_t(32) << 20;
+
+// What a load took (kdrt-mesh-memory measures the ratios with it).
+struct MeshLoadStats {
+    uint64_t file_bytes = 0;       // of the distinct files Assimp opened
+    uint64_t peak_heap_bytes = 0;  // the most live operator-new bytes while reading and copying
+};
+// load_mesh with another cap (heap_factor times the files' size plus heap_floor), and what it took.
+bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
+               MeshLoadStats *stats);
 
 // `levels` rounds of 4-to-1 midpoint subdivision (shared edges share their midpoint).
 Mesh subdivided(const Mesh &mesh, unsigned levels);

@@ -84,11 +84,7 @@ bool load_meshes(Scene &scene, std::string &error)
                 return false;
             }
         } else {
-            path = file;
-            if (!is_file(path)) {
-                error = "cannot read mesh " + path + ": no such file";
-                return false;
-            }
+            path = file;  // common::load_mesh says what is wrong with it: missing, a directory, a FIFO...
         }
         if (!path.empty()) {
             std::string why;

@@ -2,6 +2,8 @@
 // it against the Scene model, naming the line of every mistake through the nodes' marks.
 #include "scene_file.hpp"
 
+#include "common/regular_file.hpp"
+
 #include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
@@ -277,9 +279,10 @@ bool Reader::readable_file(const Fields &f, const char *key, std::string &resolv
                               (resolved != given ? " (" + resolved + ")" : std::string());
     std::error_code ec;
     if (fs::is_directory(path, ec)) return fail(*f.find(key), where + " is a folder, not a file");
-    errno = 0;
-    std::FILE *file = std::fopen(resolved.c_str(), "rb");
-    if (!file) return fail(*f.find(key), where + " cannot be read: " + std::strerror(errno));
+    std::string why;  // a FIFO or a device is refused: opening it could block, reading it never end
+    struct stat st;
+    std::FILE *file = common::open_regular_file(resolved.c_str(), st, why);
+    if (!file) return fail(*f.find(key), where + " cannot be read: " + why);
     std::fclose(file);
     return true;
 }
