@@ -10,6 +10,7 @@ PACKAGES=(
   pkg-config
   catch2          # the test framework (Catch2 v2)
   libassimp-dev   # mesh loading in the tests and examples
+  assimp-testmodels  # Assimp's 595 test files: the mesh-loading test over all of them (tests/README.md)
   libstb-dev      # stb_image_write for the example's PNG output
   libyaml-cpp-dev # kdrt-render's scene files (YAML, with line numbers for errors)
   libopenexr-dev  # kdrt-render's OpenEXR output and --reference input (linear half or float)
