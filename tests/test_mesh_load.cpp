@@ -355,7 +355,7 @@ TEST_CASE("mesh loading: geometry Assimp changes and only logs an error about is
     CHECK(mesh.triangle_count() == 1);
 }
 
-TEST_CASE("mesh loading: PLY headers that would keep Assimp looping are refused", "[mesh_load]")
+TEST_CASE("mesh loading: PLY headers Assimp loops or crashes on are refused", "[mesh_load]")
 {
     TempDir dir;
     common::Mesh mesh;
@@ -370,6 +370,23 @@ TEST_CASE("mesh loading: PLY headers that would keep Assimp looping are refused"
     // A header that never ends.
     CHECK_FALSE(common::load_mesh(dir.write("open.ply", "ply\nformat ascii 1.0\nelement vertex 3\n"), mesh, error));
     CHECK(error == "malformed PLY file: its header has no end_header line");
+    // An element without a count (found by the fuzz target: Assimp's reader read out of bounds).
+    std::string faces;
+    for (uint32_t v : {3u, 0u, 1u, 2u}) faces += v == 3 ? std::string(1, char(3)) : le32(v);
+    CHECK_FALSE(common::load_mesh(
+        dir.write("no_count.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                                  "property float y\nproperty float z\nelement face vertex_indices\n"
+                                  "property list uchar uint vertex_indices\nend_header\n" +
+                                      std::string(36, '\0') + faces),
+        mesh, error));
+    CHECK(error == "malformed PLY file: header line 7 is not a PLY header line: 'element face vertex_indices'");
+    // Lines PLY does not know are skipped, as Assimp skips them (Blender 2.4 wrote one).
+    CHECK(common::load_mesh(dir.write("blender.ply", "ply\nformat ascii 1.0\nCreated by Blender3D 247\nelement vertex 3\n"
+                                                     "property float x\nproperty float y\nproperty float z\n"
+                                                     "element face 1\nproperty list uchar int vertex_indices\n"
+                                                     "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"),
+                            mesh, error));
+    CHECK(mesh.triangle_count() == 1);
 }
 
 TEST_CASE("mesh loading: threads loading at once each get their own answer", "[mesh_load]")

@@ -12,6 +12,7 @@
 #include <assimp/scene.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include <mutex>
 #include <new>
 #include <set>
+#include <sstream>
 #include <unordered_map>
 
 namespace common {
@@ -43,35 +45,66 @@ void Mesh::corners(uint32_t triangle, double p[3][3]) const {
 
 namespace {
 
-// Two PLY headers Assimp's reader never finishes with: one that does not end (no end_header
-// line), and elements claimed by the billion with no data (a 58-byte file with "element vertex
-// 1000000000" and no properties keeps it looping for minutes). Any element takes at least a byte
-// of the file, or an ASCII line, so no count may exceed the file's size.
+// PLY headers Assimp's reader is not safe on, checked line by line before it sees them: one that
+// does not end (it never returns), elements claimed by the billion with no data (a 58-byte file
+// with "element vertex 1000000000" and no properties keeps it looping for minutes: any element
+// takes at least a byte, or an ASCII line, so no count may exceed the file's size), and format,
+// element and property lines that are not what PLY says (an element without a count made it read
+// out of bounds).
 bool check_ply_header(const std::string &path, std::string &error) {
     struct stat st;
     std::string why;
     FILE *file = open_regular_file(path.c_str(), st, why);
     if (!file) return true; // reported when Assimp opens it
-    char head[4] = {0, 0, 0, 0};
     std::string header;
-    if (std::fread(head, 1, 3, file) == 3 && std::strncmp(head, "ply", 3) == 0) {
-        char buffer[4096];
-        size_t n;
-        while (header.find("end_header") == std::string::npos && header.size() < (1u << 20) &&
-               (n = std::fread(buffer, 1, sizeof buffer, file)) > 0)
-            header.append(buffer, n);
-        if (header.find("end_header") == std::string::npos) error = "malformed PLY file: its header has no end_header line";
+    char buffer[4096];
+    size_t n;
+    while (header.size() < (1u << 20) && (n = std::fread(buffer, 1, sizeof buffer, file)) > 0) {
+        header.append(buffer, n);
+        if (header.compare(0, 3, "ply", 0, std::min<size_t>(3, header.size())) != 0) break;  // not PLY
+        if (header.find("\nend_header") != std::string::npos) break;
     }
     std::fclose(file);
-    header.resize(std::min(header.size(), header.find("end_header")));
-    for (size_t at = header.find("\nelement "); error.empty() && at != std::string::npos; at = header.find("\nelement ", at + 1)) {
-        char name[64] = "";
-        unsigned long long count = 0;
-        if (std::sscanf(header.c_str() + at, "\nelement %63s %llu", name, &count) == 2 && count > uint64_t(st.st_size))
-            error = "malformed PLY file: its header claims " + std::to_string(count) + " " + name +
-                    " elements, more than its " + std::to_string(st.st_size) + " bytes can hold";
+    if (header.compare(0, 3, "ply") != 0) return true;  // what Assimp takes for PLY
+    static const std::set<std::string> types = {"char",  "uchar",  "short", "ushort", "int",   "uint",
+                                                "float", "double", "int8",  "uint8",  "int16", "uint16",
+                                                "int32", "uint32", "float32", "float64"};
+    const std::string formats = " ascii binary_little_endian binary_big_endian ";
+    std::istringstream lines(header);
+    std::string line;
+    bool in_element = false;
+    for (int number = 1; std::getline(lines, line); ++number) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (number == 1 && line == "ply") continue;
+        std::istringstream words(line);
+        std::vector<std::string> w;
+        for (std::string word; words >> word;) w.push_back(word);
+        if (w.empty()) continue;
+        if (w[0] == "end_header" && w.size() == 1) return true;
+        bool ok = number > 1;  // comments, and other lines Assimp skips too (Blender 2.4 wrote one)
+        if (w[0] == "format") {
+            ok = w.size() == 3 && formats.find(" " + w[1] + " ") != std::string::npos;
+        } else if (w[0] == "element") {
+            ok = w.size() == 3 && w[2].find_first_not_of("0123456789") == std::string::npos && w[2].size() <= 19;
+            if (ok && std::stoull(w[2]) > uint64_t(st.st_size)) {
+                error = "malformed PLY file: its header claims " + w[2] + " " + w[1] + " elements, more than its " +
+                        std::to_string(st.st_size) + " bytes can hold";
+                return false;
+            }
+            in_element = ok;
+        } else if (w[0] == "property") {
+            ok = in_element && ((w.size() == 3 && types.count(w[1])) ||
+                                (w.size() == 5 && w[1] == "list" && types.count(w[2]) && types.count(w[3])));
+        }
+        if (!ok) {
+            for (char &c : line) c = std::isprint(static_cast<unsigned char>(c)) ? c : '?';
+            error = "malformed PLY file: header line " + std::to_string(number) + " is not a PLY header line: '" +
+                    line.substr(0, 60) + (line.size() > 60 ? "...'" : "'");
+            return false;
+        }
     }
-    return error.empty();
+    error = "malformed PLY file: its header has no end_header line";
+    return false;
 }
 
 // Assimp's file access for one load: only regular files open (any other "does not exist", so a
