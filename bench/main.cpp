@@ -265,9 +265,10 @@ int run(int argc, char **argv) {
         std::fprintf(stderr, "kdrt-bench: %s\n", error.c_str());
         return 2;
     }
-    if (opt.help) {
-        std::fputs(kb::usage().c_str(), stdout);
-        return 0;
+    if (opt.help) {  // longer than stdio's buffer: checked as it is written, where errno says why
+        if (common::write_flushed(stdout, kb::usage(), "standard output", error)) return 0;
+        std::fprintf(stderr, "kdrt-bench: %s\n", error.c_str());
+        return 1;
     }
     if (opt.compare_embree && !kb::embree_available()) {
         std::fprintf(stderr, "kdrt-bench: --compare embree is unavailable: this kdrt-bench was built without Embree "
