@@ -11,14 +11,17 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <mutex>
 #include <new>
 #include <set>
 #include <sstream>
@@ -178,7 +181,7 @@ private:
     unsigned &count_;
 };
 
-// Assimp's logger is one global object: loads take turns while it exists (load_mesh's mutex).
+// Assimp's logger is one global object: each loader process has its own.
 struct LoggedErrors {
     std::string first;
     unsigned count = 0;
@@ -288,25 +291,9 @@ std::string grouped(uint64_t n)
     return out;
 }
 
-}  // namespace
-
-bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
-    return load_mesh(path, out, error, mesh_heap_factor, mesh_heap_floor, nullptr);
-}
-
-bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
+// load_mesh's work, in the calling process (load_mesh runs it in a child).
+bool load_here(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
                MeshLoadStats *stats) {
-    if (stats) *stats = MeshLoadStats();
-    struct stat st;
-    if (::stat(path.c_str(), &st) != 0) {
-        error = errno == ENOENT ? "no such file" : std::strerror(errno);
-        return false;
-    }
-    if (!(error = not_regular(st)).empty()) return false;
-    if (!check_ply_header(path, error)) return false;
-
-    static std::mutex one_at_a_time;
-    const std::lock_guard<std::mutex> lock(one_at_a_time);
     LoggedErrors logged;
     Assimp::Importer importer;
     GuardedFiles *files = new GuardedFiles(heap_factor);
@@ -345,6 +332,130 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t 
     if (logged.count) {
         error = "malformed file: " + logged.first +
                 (logged.count > 1 ? " (and " + std::to_string(logged.count - 1) + " more errors)" : "");
+        return false;
+    }
+    out = std::move(mesh);
+    return true;
+}
+
+// The loader process's answer, on a pipe: a magic word and success, then the message, the mesh's
+// name, positions and indices, each length first, and the load's statistics.
+const uint64_t answer_magic = 0x6b6472746d657368;  // "kdrtmesh"
+
+bool write_all(int fd, const void *data, size_t size) {
+    const char *p = static_cast<const char *>(data);
+    while (size > 0) {
+        const ssize_t n = ::write(fd, p, size);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return false;
+        p += n, size -= size_t(n);
+    }
+    return true;
+}
+
+template <class T> bool write_array(int fd, const T *items, size_t count) {
+    const uint64_t n = count;
+    return write_all(fd, &n, sizeof n) && write_all(fd, items, count * sizeof(T));
+}
+
+bool write_answer(int fd, bool ok, const std::string &error, const Mesh &mesh, const MeshLoadStats &stats) {
+    const uint64_t head[2] = {answer_magic, ok};
+    return write_all(fd, head, sizeof head) && write_array(fd, error.data(), error.size()) &&
+           write_array(fd, mesh.name.data(), mesh.name.size()) &&
+           write_array(fd, mesh.positions.data(), mesh.positions.size()) &&
+           write_array(fd, mesh.indices.data(), mesh.indices.size()) && write_all(fd, &stats, sizeof stats);
+}
+
+// Reads the answer back; false where it is cut short (the loader died) or does not add up.
+struct AnswerReader {
+    const std::string &data;
+    size_t at = 0;
+    bool get(void *out, size_t size) {
+        if (data.size() - at < size) return false;
+        if (size) std::memcpy(out, data.data() + at, size);
+        at += size;
+        return true;
+    }
+    template <class T> bool get_array(T &items) {  // a std::string or std::vector
+        const size_t item = sizeof(typename T::value_type);
+        uint64_t n;
+        if (!get(&n, sizeof n) || n > (data.size() - at) / item) return false;
+        items.resize(size_t(n));
+        return get(items.data(), size_t(n) * item);
+    }
+};
+
+}  // namespace
+
+bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
+    return load_mesh(path, out, error, mesh_heap_factor, mesh_heap_floor, nullptr);
+}
+
+// Assimp reads in a child process: some of its readers free memory twice when the heap budget
+// stops them (3DS, ASE, DirectX, glTF, LWO, MD5, NFF and SMD were seen to), and others may crash on
+// a malformed file in ways no check here foresees. In the child that is a file refused; in the
+// tool it would be the tool's end. The child keeps the budget's rule and sends the mesh back.
+bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
+               MeshLoadStats *stats) {
+    if (stats) *stats = MeshLoadStats();
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0) {
+        error = errno == ENOENT ? "no such file" : std::strerror(errno);
+        return false;
+    }
+    if (!(error = not_regular(st)).empty()) return false;
+    if (!check_ply_header(path, error)) return false;
+
+    int pipe_fds[2];
+    if (::pipe(pipe_fds) != 0) {
+        error = std::string("cannot start the loader process: ") + std::strerror(errno);
+        return false;
+    }
+    const pid_t child = ::fork();
+    if (child < 0) {
+        error = std::string("cannot start the loader process: ") + std::strerror(errno);
+        ::close(pipe_fds[0]), ::close(pipe_fds[1]);
+        return false;
+    }
+    if (child == 0) {  // the loader: one thread, a copy of everything; it never returns
+        ::close(pipe_fds[0]);
+        // The tool's handlers are the tool's: its cleanup, a test framework's crash reports.
+        for (int signal : {SIGINT, SIGTERM, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) std::signal(signal, SIG_DFL);
+        Mesh mesh;
+        std::string why;
+        MeshLoadStats took;
+        const bool ok = load_here(path, mesh, why, heap_factor, heap_floor, &took);
+        ::_exit(write_answer(pipe_fds[1], ok, why, mesh, took) ? 0 : 1);  // no atexit, no stdio flush
+    }
+    ::close(pipe_fds[1]);
+    std::string data;
+    std::vector<char> buffer(1 << 16);
+    for (;;) {
+        const ssize_t n = ::read(pipe_fds[0], buffer.data(), buffer.size());
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;
+        data.append(buffer.data(), size_t(n));
+    }
+    ::close(pipe_fds[0]);
+    int status = 0;
+    while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {}
+
+    AnswerReader answer{data};
+    uint64_t head[2];
+    std::string message;
+    Mesh mesh;
+    MeshLoadStats took;
+    if (!answer.get(head, sizeof head) || head[0] != answer_magic || !answer.get_array(message) ||
+        !answer.get_array(mesh.name) || !answer.get_array(mesh.positions) || !answer.get_array(mesh.indices) ||
+        !answer.get(&took, sizeof took) || answer.at != data.size()) {
+        error = WIFSIGNALED(status) ? "Assimp crashed reading it (" + std::string(strsignal(WTERMSIG(status))) + ")"
+                                    : "the loader process ended without an answer (exit status " +
+                                          std::to_string(WEXITSTATUS(status)) + ")";
+        return false;
+    }
+    if (stats) *stats = took;
+    if (!head[1]) {
+        error = message;
         return false;
     }
     out = std::move(mesh);

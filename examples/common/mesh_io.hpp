@@ -26,8 +26,9 @@ struct Mesh {
 // file, when Assimp fails or logs one of the errors that mean it changed the geometry (a
 // malformed file), or when reading it would take more heap than mesh_heap_factor times the bytes
 // of the files Assimp opens for it plus mesh_heap_floor (twice that for requests under 1 MiB; the
-// message names the request). Loads take turns, and each replaces Assimp's DefaultLogger while
-// it runs: the logger is global. tools/README.md ("Mesh files") says what is refused and why.
+// message names the request). Assimp runs in a child process (fork), which sends the mesh back:
+// a reader that crashes on a malformed file ("Assimp crashed reading it") fails the load, not the
+// program. tools/README.md ("Mesh files") says what is refused and why.
 bool load_mesh(const std::string &path, Mesh &out, std::string &error);
 
 // The heap a load may take: this many times the size of the files it reads, plus the floor.
