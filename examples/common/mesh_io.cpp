@@ -11,6 +11,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -59,16 +60,23 @@ bool check_ply_header(const std::string &path, std::string &error) {
     std::string why;
     FILE *file = open_regular_file(path.c_str(), st, why);
     if (!file) return true; // reported when Assimp opens it
+    // What Assimp takes for PLY: "ply" first, in any case ("pLy" loads as well).
+    auto is_ply = [](const std::string &text) {
+        const size_t n = std::min<size_t>(3, text.size());
+        for (size_t i = 0; i < n; ++i)
+            if (std::tolower(static_cast<unsigned char>(text[i])) != "ply"[i]) return false;
+        return n == 3 || text.size() == n;  // a prefix of "ply" may yet become it
+    };
     std::string header;
     char buffer[4096];
     size_t n;
     while (header.size() < (1u << 20) && (n = std::fread(buffer, 1, sizeof buffer, file)) > 0) {
         header.append(buffer, n);
-        if (header.compare(0, 3, "ply", 0, std::min<size_t>(3, header.size())) != 0) break;  // not PLY
+        if (!is_ply(header)) break;
         if (header.find("\nend_header") != std::string::npos) break;
     }
     std::fclose(file);
-    if (header.compare(0, 3, "ply") != 0) return true;  // what Assimp takes for PLY
+    if (header.size() < 3 || !is_ply(header)) return true;
     static const std::set<std::string> types = {"char",  "uchar",  "short", "ushort", "int",   "uint",
                                                 "float", "double", "int8",  "uint8",  "int16", "uint16",
                                                 "int32", "uint32", "float32", "float64"};
@@ -78,7 +86,7 @@ bool check_ply_header(const std::string &path, std::string &error) {
     bool in_element = false;
     for (int number = 1; std::getline(lines, line); ++number) {
         if (!line.empty() && line.back() == '\r') line.pop_back();
-        if (number == 1 && line == "ply") continue;
+        if (number == 1 && line.size() == 3) continue;  // "ply", in some case
         std::istringstream words(line);
         std::vector<std::string> w;
         for (std::string word; words >> word;) w.push_back(word);
@@ -396,7 +404,7 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error) {
 // a malformed file in ways no check here foresees. In the child that is a file refused; in the
 // tool it would be the tool's end. The child keeps the budget's rule and sends the mesh back.
 bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
-               MeshLoadStats *stats) {
+               MeshLoadStats *stats, uint64_t cpu_limit) {
     if (stats) *stats = MeshLoadStats();
     struct stat st;
     if (::stat(path.c_str(), &st) != 0) {
@@ -406,6 +414,8 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t 
     if (!(error = not_regular(st)).empty()) return false;
     if (!check_ply_header(path, error)) return false;
 
+    // A reader that loops ends with the child: it may take mesh_cpu_seconds, and one more a MB.
+    const uint64_t cpu_seconds = cpu_limit + uint64_t(st.st_size >> 20);
     int pipe_fds[2];
     if (::pipe(pipe_fds) != 0) {
         error = std::string("cannot start the loader process: ") + std::strerror(errno);
@@ -420,7 +430,10 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t 
     if (child == 0) {  // the loader: one thread, a copy of everything; it never returns
         ::close(pipe_fds[0]);
         // The tool's handlers are the tool's: its cleanup, a test framework's crash reports.
-        for (int signal : {SIGINT, SIGTERM, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) std::signal(signal, SIG_DFL);
+        for (int signal : {SIGINT, SIGTERM, SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGXCPU})
+            std::signal(signal, SIG_DFL);
+        const rlimit cpu = {rlim_t(cpu_seconds), rlim_t(cpu_seconds + 1)};  // then SIGXCPU
+        ::setrlimit(RLIMIT_CPU, &cpu);
         Mesh mesh;
         std::string why;
         MeshLoadStats took;
@@ -448,9 +461,13 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t 
     if (!answer.get(head, sizeof head) || head[0] != answer_magic || !answer.get_array(message) ||
         !answer.get_array(mesh.name) || !answer.get_array(mesh.positions) || !answer.get_array(mesh.indices) ||
         !answer.get(&took, sizeof took) || answer.at != data.size()) {
-        error = WIFSIGNALED(status) ? "Assimp crashed reading it (" + std::string(strsignal(WTERMSIG(status))) + ")"
-                                    : "the loader process ended without an answer (exit status " +
-                                          std::to_string(WEXITSTATUS(status)) + ")";
+        if (WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU)
+            error = "refused: reading it took more than " + std::to_string(cpu_seconds) + " s (" +
+                    std::to_string(cpu_limit) + " s, and 1 s a MB of file)";
+        else if (WIFSIGNALED(status))
+            error = "Assimp crashed reading it (" + std::string(strsignal(WTERMSIG(status))) + ")";
+        else
+            error = "the loader process ended without an answer (exit status " + std::to_string(WEXITSTATUS(status)) + ")";
         return false;
     }
     if (stats) *stats = took;

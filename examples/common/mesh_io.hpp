@@ -28,22 +28,26 @@ struct Mesh {
 // of the files Assimp opens for it plus mesh_heap_floor (twice that for requests under 1 MiB; the
 // message names the request). Assimp runs in a child process (fork), which sends the mesh back:
 // a reader that crashes on a malformed file ("Assimp crashed reading it") fails the load, not the
-// program. tools/README.md ("Mesh files") says what is refused and why.
+// program, and one that takes more than mesh_cpu_seconds of CPU time, plus one a MB of file, is
+// stopped. tools/README.md ("Mesh files") says what is refused and why.
 bool load_mesh(const std::string &path, Mesh &out, std::string &error);
 
 // The heap a load may take: this many times the size of the files it reads, plus the floor.
 // tools/README.md gives the ratios measured on real meshes.
 constexpr uint64_t mesh_heap_factor = 128;
 constexpr uint64_t mesh_heap_floor = uint64_t(32) << 20;
+// The CPU time a load may take: this many seconds, and one more per MB of the mesh file.
+constexpr uint64_t mesh_cpu_seconds = 5;
 
 // What a load took (kdrt-mesh-memory measures the ratios with it).
 struct MeshLoadStats {
     uint64_t file_bytes = 0;       // of the distinct files Assimp opened
     uint64_t peak_heap_bytes = 0;  // the most live operator-new bytes while reading and copying
 };
-// load_mesh with another cap (heap_factor times the files' size plus heap_floor), and what it took.
+// load_mesh with other limits (heap_factor times the files' size plus heap_floor; cpu_seconds,
+// and one more a MB), and what it took.
 bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
-               MeshLoadStats *stats);
+               MeshLoadStats *stats, uint64_t cpu_seconds = mesh_cpu_seconds);
 
 // `levels` rounds of 4-to-1 midpoint subdivision (shared edges share their midpoint).
 Mesh subdivided(const Mesh &mesh, unsigned levels);
