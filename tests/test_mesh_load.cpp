@@ -225,7 +225,9 @@ TEST_CASE("mesh loading: a dense real-looking mesh loads under the heap budget",
     common::Mesh mesh;
     std::string error;
     common::MeshLoadStats stats;
-    REQUIRE(common::load_mesh(path, mesh, error, common::mesh_heap_factor, common::mesh_heap_floor, &stats));
+    const bool loaded = common::load_mesh(path, mesh, error, common::mesh_heap_factor, common::mesh_heap_floor, &stats);
+    INFO(error);
+    REQUIRE(loaded);
     CHECK(mesh.triangle_count() == 2 * (n - 1) * (n - 1));
     CHECK(mesh.vertex_count() == n * n);
     CHECK(stats.file_bytes == obj.size());

@@ -464,10 +464,10 @@ bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t 
         if (WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU)
             error = "refused: reading it took more than " + std::to_string(cpu_seconds) + " s (" +
                     std::to_string(cpu_limit) + " s, and 1 s a MB of file)";
-        else if (WIFSIGNALED(status))
-            error = "Assimp crashed reading it (" + std::string(strsignal(WTERMSIG(status))) + ")";
-        else
-            error = "the loader process ended without an answer (exit status " + std::to_string(WEXITSTATUS(status)) + ")";
+        else  // a signal, or a sanitizer's report and exit
+            error = "Assimp crashed reading it (" +
+                    (WIFSIGNALED(status) ? std::string(strsignal(WTERMSIG(status)))
+                                         : "exit status " + std::to_string(WEXITSTATUS(status))) + ")";
         return false;
     }
     if (stats) *stats = took;

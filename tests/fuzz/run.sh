@@ -64,7 +64,7 @@ fuzz_one() {
   mkdir -p "$out/corpus/$t" "$out/findings/$t" "$out/tmp/$t"
   rm -f "$out/$t.status"
   # The scene and mesh targets write their files under TMPDIR: a crash cannot leave them in /tmp.
-  TMPDIR="$out/tmp/$t" LSAN_OPTIONS="suppressions=$here/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}" \
+  TMPDIR="$out/tmp/$t" LSAN_OPTIONS="suppressions=$here/../sanitizer/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}" \
   "$build/tests/fuzz/kdrt_fuzz_$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
     -print_final_stats=1 -artifact_prefix="$out/findings/$t/" "$out/corpus/$t" "${seeds[@]}" >"$out/$t.log" 2>&1
 }
