@@ -161,12 +161,14 @@
      made only if its children hold at most their node's budget together, and they share it in
      proportion to what each holds. So every level of the tree holds at most 8 n references
      (n: the triangles in the tree), which bounds the build whatever the input: the tree's
-     references at most 8 n (32 bytes a triangle), its nodes at most 12 n a level; the build's
-     working references at most 8 n at any moment (28 bytes each, plus the sorted events of at
-     most max_depth nodes of at most KDRT_SAH_EXACT_MAX references); and O(n) work a level,
-     sorts included (long ones are radix sorts), over at most max_depth levels: O(n log n)
-     with the default max_depth. Ordinary meshes need 2.5 to 4.5 references a triangle: the
-     budget binds only in a few deep nodes there.
+     references at most 8 n (32 bytes a triangle), its nodes at most 12 n a level (an inner
+     node holds 2 references or more); the build's reference arrays at most 8 n at any moment
+     (28 bytes each: above the exact region each node's array is freed once its children have
+     theirs), and sorted events for at most one budget's worth at a time (48 bytes a
+     reference); O(n) work a level, sorts included (long ones are radix sorts), over at most
+     max_depth levels: O(n log n) with the default max_depth. Ordinary meshes need 2.5 to 4.5
+     references a triangle and keep their trees; a fan of triangles round one vertex gets big
+     leaves round it instead of references without end.
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread; the subtrees below, at most 64, are independent tasks handed
      to options.scheduler, then joined in depth-first order. The cut depends only on the input,
