@@ -49,8 +49,9 @@ bool is_mesh_file(const fs::path &p) {
     return ext == ".off" || ext == ".obj" || ext == ".ply" || ext == ".stl" || ext == ".gltf" || ext == ".glb";
 }
 
-// Files named on the command line, and the mesh files inside named folders (sorted).
-std::vector<std::string> expand_inputs(const std::vector<std::string> &args) {
+// Files named on the command line, and the mesh files inside named folders (sorted); a folder
+// with none is named in `empty`.
+std::vector<std::string> expand_inputs(const std::vector<std::string> &args, std::vector<std::string> &empty) {
     std::vector<std::string> files;
     for (const std::string &arg : args) {
         std::error_code ec;
@@ -60,6 +61,7 @@ std::vector<std::string> expand_inputs(const std::vector<std::string> &args) {
                 if (entry.is_regular_file(ec) && is_mesh_file(entry.path())) inside.push_back(entry.path().string());
             std::sort(inside.begin(), inside.end());
             files.insert(files.end(), inside.begin(), inside.end());
+            if (inside.empty()) empty.push_back(arg);
         } else {
             files.push_back(arg);  // a missing file is reported when it fails to load
         }
@@ -291,7 +293,13 @@ int run(int argc, char **argv) {
         progress.note("kdrt-bench: no meshes given and " KDRT_MESH_DIR "/seed is absent: using generated meshes");
         inputs = generated_inputs();
     }
-    for (const std::string &path : expand_inputs(args)) {
+    std::vector<std::string> empty_folders;
+    const std::vector<std::string> files = expand_inputs(args, empty_folders);
+    for (const std::string &folder : empty_folders) {
+        progress.note("kdrt-bench: skipping " + folder + ": a folder with no mesh files (.off, .obj, .ply, .stl, .gltf, .glb)");
+        ++failures;
+    }
+    for (const std::string &path : files) {
         Input in;
         in.label = upper_stem(path);
         if (path.rfind("hostile:", 0) == 0) {  // hostile:KIND:TRIANGLES, generated
