@@ -2,6 +2,7 @@
 // Assimp reads it back, the picture, and outputs that cannot be written.
 #include "test_support.hpp"
 #include "tree_inspect.hpp"
+#include "temp_dir.hpp"
 
 #include <assimp/Importer.hpp>
 #include <assimp/scene.h>
@@ -23,33 +24,8 @@
 
 namespace {
 
-struct TempDir {
-    std::string path;
-    TempDir()
-    {
-        char name[] = "/tmp/kdrt-inspect-XXXXXX";
-        REQUIRE(mkdtemp(name) != nullptr);
-        path = name;
-    }
-    std::vector<std::string> entries() const
-    {
-        std::vector<std::string> out;
-        if (DIR *d = opendir(path.c_str())) {
-            while (const dirent *e = readdir(d))
-                if (std::string(e->d_name) != "." && std::string(e->d_name) != "..") out.push_back(e->d_name);
-            closedir(d);
-        }
-        return out;
-    }
-    ~TempDir()
-    {
-        for (const std::string &e : entries()) {
-            const std::string p = path + "/" + e;
-            if (std::remove(p.c_str()) != 0) rmdir(p.c_str());
-        }
-        rmdir(path.c_str());
-    }
-};
+using kt::TempDir;
+
 
 using Corner = std::array<float, 3>;
 
@@ -130,7 +106,7 @@ TEST_CASE("inspect tools: the wireframes open in Assimp", "[inspect][tools]") {
     TempDir dir;
 
     SECTION("OBJ: 12 line primitives a box over the boxes' corners") {
-        const std::string path = dir.path + "/boxes.obj";
+        const std::string path = dir.file("boxes.obj");
         REQUIRE(kdrt_tools::write_boxes(boxes, path, error));
         Assimp::Importer importer;
         const aiScene *scene = importer.ReadFile(path, 0);
@@ -149,7 +125,7 @@ TEST_CASE("inspect tools: the wireframes open in Assimp", "[inspect][tools]") {
         CHECK(read == corners);
     }
     SECTION("PLY: 8 vertices a box as Assimp reads them, 12 edges a box as the file declares") {
-        const std::string path = dir.path + "/boxes.ply";
+        const std::string path = dir.file("boxes.ply");
         REQUIRE(kdrt_tools::write_boxes(boxes, path, error));
         Assimp::Importer importer;
         const aiScene *scene = importer.ReadFile(path, 0);
@@ -206,13 +182,13 @@ TEST_CASE("inspect tools: outputs that cannot be written leave no file", "[inspe
 
     CHECK_FALSE(kdrt_tools::write_boxes(boxes, "/nonexistent-dir/boxes.obj", error));
     CHECK(error.find("cannot write '/nonexistent-dir/boxes.obj': ") == 0);
-    CHECK_FALSE(kdrt_tools::write_boxes(boxes, dir.path + "/boxes.stl", error));
+    CHECK_FALSE(kdrt_tools::write_boxes(boxes, dir.file("boxes.stl"), error));
     CHECK(error.find("as .obj or .ply") != std::string::npos);
     CHECK_FALSE(kdrt_tools::write_boxes_picture(mesh, tree.get(), boxes, 32, 24, "/nonexistent-dir/boxes.png", error));
     CHECK(error.find("cannot write '/nonexistent-dir/boxes.png': ") == 0);
 
     // A directory where the file should go: refused, and the temporary file is gone.
-    const std::string occupied = dir.path + "/taken.ply";
+    const std::string occupied = dir.file("taken.ply");
     REQUIRE(mkdir(occupied.c_str(), 0700) == 0);
     CHECK_FALSE(kdrt_tools::write_boxes(boxes, occupied, error));
     CHECK(error == "cannot write '" + occupied + "': it exists and is not a regular file");
@@ -226,7 +202,7 @@ TEST_CASE("inspect tools: the picture shows the mesh and the root box", "[inspec
     std::string error;
     REQUIRE(kdrt_tools::boxes_to_depth(tree.get(), 1, boxes, error));
     TempDir dir;
-    const std::string path = dir.path + "/boxes.png";
+    const std::string path = dir.file("boxes.png");
     REQUIRE(kdrt_tools::write_boxes_picture(mesh, tree.get(), boxes, 160, 120, path, error));
     int w = 0, h = 0, channels = 0;
     unsigned char *px = stbi_load(path.c_str(), &w, &h, &channels, 3);

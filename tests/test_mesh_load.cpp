@@ -3,6 +3,7 @@
 // blocking, and the geometry errors Assimp only logs are errors. The files are written here.
 #include "common/heap_budget.hpp"
 #include "common/mesh_io.hpp"
+#include "temp_dir.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -31,32 +32,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-    fs::path path;
-    TempDir()
-    {
-        char name[] = "/tmp/kdrt-mesh-load-XXXXXX";
-        REQUIRE(mkdtemp(name) != nullptr);
-        path = name;
-    }
-    ~TempDir()
-    {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    std::string write(const std::string &name, const std::string &bytes) const
-    {
-        const std::string file = (path / name).string();
-        std::ofstream(file, std::ios::binary) << bytes;
-        return file;
-    }
-    std::string fifo(const std::string &name) const
-    {
-        const std::string file = (path / name).string();
-        REQUIRE(mkfifo(file.c_str(), 0600) == 0);
-        return file;
-    }
-};
+using kt::TempDir;
+
 
 std::string le32(uint32_t v)
 {
@@ -291,10 +268,10 @@ TEST_CASE("mesh loading: a path that is not a regular file is refused at once by
     TempDir dir;
     common::Mesh mesh;
     std::string error;
-    CHECK_FALSE(common::load_mesh((dir.path / "missing.off").string(), mesh, error));
+    CHECK_FALSE(common::load_mesh(dir.file("missing.off"), mesh, error));
     CHECK(error == "no such file");
-    fs::create_directory(dir.path / "x.obj");
-    CHECK_FALSE(common::load_mesh((dir.path / "x.obj").string(), mesh, error));
+    fs::create_directory(dir.file("x.obj"));
+    CHECK_FALSE(common::load_mesh(dir.file("x.obj"), mesh, error));
     CHECK(error == "it is a directory");
     CHECK_FALSE(common::load_mesh("/dev/zero", mesh, error));
     CHECK(error == "it is not a regular file (a character device)");

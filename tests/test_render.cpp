@@ -2,6 +2,7 @@
 // path refracts as optics says (checked against an exact double-precision trace and the paraxial
 // ball-lens formula), and image files are written atomically and read back.
 #include "render.hpp"
+#include "temp_dir.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -24,6 +25,8 @@
 
 namespace {
 
+using kt::TempDir;
+
 uint64_t fnv1a(const std::vector<float> &data)
 {
     uint64_t h = 1469598103934665603ull;
@@ -45,35 +48,6 @@ kr::Image render_scene(const kr::Scene &scene, unsigned threads, uint32_t w, uin
     return image;
 }
 
-// A fresh empty folder under /tmp, removed (with what the test left in it) by the destructor.
-struct TempDir {
-    std::string path;
-    TempDir()
-    {
-        char name[] = "/tmp/kdrt-render-test-XXXXXX";
-        REQUIRE(mkdtemp(name) != nullptr);
-        path = name;
-    }
-    ~TempDir()
-    {
-        for (const std::string &f : entries()) {
-            const std::string p = path + "/" + f;
-            if (std::remove(p.c_str()) != 0) rmdir(p.c_str());
-        }
-        rmdir(path.c_str());
-    }
-    std::vector<std::string> entries() const
-    {
-        std::vector<std::string> names;
-        if (DIR *d = opendir(path.c_str())) {
-            while (dirent *e = readdir(d))
-                if (std::strcmp(e->d_name, ".") != 0 && std::strcmp(e->d_name, "..") != 0) names.push_back(e->d_name);
-            closedir(d);
-        }
-        std::sort(names.begin(), names.end());
-        return names;
-    }
-};
 
 // A scene holding one glass sphere of radius 1 at the origin and nothing else.
 kr::Scene glass_ball(double ior)
@@ -245,7 +219,7 @@ TEST_CASE("render: EXR and PNG files read back with the pixels written", "[rende
     std::string error;
 
     SECTION("half EXR: within half precision") {
-        const std::string path = dir.path + "/half.exr";
+        const std::string path = dir.file("half.exr");
         REQUIRE(kr::write_image(path, image, false, error));
         kr::Image back;
         REQUIRE(kr::read_image(path, back, error));
@@ -254,7 +228,7 @@ TEST_CASE("render: EXR and PNG files read back with the pixels written", "[rende
         for (size_t i = 0; i < image.rgb.size(); ++i) CHECK(std::fabs(back.rgb[i] - image.rgb[i]) <= 0x1p-11f * image.rgb[i] + 1e-7f);
     }
     SECTION("float EXR: exact") {
-        const std::string path = dir.path + "/float.exr";
+        const std::string path = dir.file("float.exr");
         REQUIRE(kr::write_image(path, image, true, error));
         kr::Image back;
         REQUIRE(kr::read_image(path, back, error));
@@ -264,7 +238,7 @@ TEST_CASE("render: EXR and PNG files read back with the pixels written", "[rende
         CHECK(rmse == 0);
     }
     SECTION("PNG: sRGB bytes of the clamped values, through stb_image") {
-        const std::string path = dir.path + "/out.PNG";  // extensions are case-insensitive
+        const std::string path = dir.file("out.PNG");  // extensions are case-insensitive
         REQUIRE(kr::write_image(path, image, false, error));
         int w = 0, h = 0, c = 0;
         unsigned char *bytes = stbi_load(path.c_str(), &w, &h, &c, 3);
@@ -289,20 +263,20 @@ TEST_CASE("render: a failed write leaves no output and no temporary file", "[ren
     image.rgb.assign(12, 0.5f);
     std::string error;
 
-    CHECK_FALSE(kr::write_image(dir.path + "/out.bmp", image, false, error));
+    CHECK_FALSE(kr::write_image(dir.file("out.bmp"), image, false, error));
     CHECK(error.find(".png or .exr") != std::string::npos);
-    CHECK_FALSE(kr::write_image(dir.path + "/no-such-folder/out.png", image, false, error));
+    CHECK_FALSE(kr::write_image(dir.file("no-such-folder/out.png"), image, false, error));
     CHECK(error.find("cannot create") != std::string::npos);
-    CHECK_FALSE(kr::write_image(dir.path + "/no-such-folder/out.exr", image, false, error));
+    CHECK_FALSE(kr::write_image(dir.file("no-such-folder/out.exr"), image, false, error));
     CHECK(dir.entries().empty());
     // The output path is a folder: refused before anything is written.
-    REQUIRE(mkdir((dir.path + "/taken.exr").c_str(), 0755) == 0);
-    CHECK_FALSE(kr::write_image(dir.path + "/taken.exr", image, false, error));
+    REQUIRE(mkdir(dir.file("taken.exr").c_str(), 0755) == 0);
+    CHECK_FALSE(kr::write_image(dir.file("taken.exr"), image, false, error));
     CHECK(error.find("not a regular file") != std::string::npos);
     CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
     // An image whose pixels do not match its size is refused, not half written.
     image.rgb.pop_back();
-    CHECK_FALSE(kr::write_image(dir.path + "/short.png", image, false, error));
+    CHECK_FALSE(kr::write_image(dir.file("short.png"), image, false, error));
     CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
 }
 
@@ -313,8 +287,8 @@ TEST_CASE("render: a read-only image is refused and kept, for root too, and a wr
     image.width = 2, image.height = 2;
     image.rgb.assign(12, 0.5f);
     std::string error;
-    for (const char *name : {"/locked.png", "/locked.exr"}) {
-        const std::string path = dir.path + name;
+    for (const char *name : {"locked.png", "locked.exr"}) {
+        const std::string path = dir.file(name);
         FILE *f = std::fopen(path.c_str(), "w");
         REQUIRE(f);
         std::fputs("the old file", f);
@@ -574,17 +548,17 @@ TEST_CASE("render: image textures are read through stb_image and decoded from sR
     image.width = 3, image.height = 2;
     image.rgb = {0, 0.5f, 1, 0.25f, 0.75f, 0.01f, 0.2f, 0.4f, 0.6f, 0.8f, 0.9f, 0.05f, 1, 1, 1, 0.002f, 0.3f, 0.7f};
     std::string error;
-    REQUIRE(kr::write_image(dir.path + "/tex.png", image, false, error));
+    REQUIRE(kr::write_image(dir.file("tex.png"), image, false, error));
     kr::Scene scene;
     kr::Texture t;
-    t.file = dir.path + "/tex.png";
+    t.file = dir.file("tex.png");
     scene.textures.push_back(t);
     REQUIRE(kr::load_textures(scene, error));
     REQUIRE(scene.textures[0].width == 3);
     REQUIRE(scene.textures[0].height == 2);
     for (size_t i = 0; i < image.rgb.size(); ++i) CHECK(std::fabs(scene.textures[0].rgb[i] - image.rgb[i]) < 0.006f);  // 8 bits
     scene.textures[0].rgb.clear();
-    scene.textures[0].file = dir.path + "/none.png";
+    scene.textures[0].file = dir.file("none.png");
     CHECK_FALSE(kr::load_textures(scene, error));
-    CHECK(error.find(dir.path + "/none.png") != std::string::npos);
+    CHECK(error.find(dir.file("none.png")) != std::string::npos);
 }

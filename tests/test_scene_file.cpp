@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include "scene_file.hpp"
+#include "temp_dir.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -18,30 +19,8 @@ using kr::Scene;
 
 namespace {
 
-// A fresh folder per test, removed afterwards.
-struct TempDir {
-    fs::path path;
-    TempDir()
-    {
-        static std::atomic<int> counter{0};
-        path = fs::temp_directory_path() /
-               ("kdrt_scene_test_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempDir()
-    {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    std::string write(const std::string &name, const std::string &text) const
-    {
-        const fs::path file = path / name;
-        fs::create_directories(file.parent_path());
-        std::ofstream(file, std::ios::binary) << text;
-        return file.string();
-    }
-};
+using kt::TempDir;
+
 
 // What the caller had before a failed read; it must still be there afterwards.
 Scene callers_scene()

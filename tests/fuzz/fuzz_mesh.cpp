@@ -6,6 +6,7 @@
 // are in range, and kdrt builds a tree over it or says why not.
 #include "kdrt.h"
 #include "common/mesh_io.hpp"
+#include "fuzz_support.hpp"
 
 #include <cstdint>
 #include <cstdio>
@@ -17,16 +18,6 @@
 #include <unistd.h>
 
 namespace {
-
-#define FUZZ_CHECK(cond, ...)                                                              \
-    do {                                                                                   \
-        if (!(cond)) {                                                                     \
-            std::fprintf(stderr, "fuzz_mesh: %s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            std::fprintf(stderr, __VA_ARGS__);                                             \
-            std::fprintf(stderr, "\n");                                                    \
-            std::abort();                                                                  \
-        }                                                                                  \
-    } while (0)
 
 // A folder of this process's own for the input file, removed at exit.
 struct WorkDir {

@@ -6,8 +6,8 @@
 // [0, 1], and are 0 on invalid input; the stack holds at most KDRT_MEDIA_STACK_CAPACITY media,
 // its indices stay finite and positive, and an operation that fails leaves it as it was.
 #include "kdrt.h"
+#include "fuzz_support.hpp"
 
-#include <fuzzer/FuzzedDataProvider.h>
 
 #include <cmath>
 #include <cstdint>
@@ -18,37 +18,9 @@
 
 namespace {
 
-#define FUZZ_CHECK(cond, ...)                                                              \
-    do {                                                                                   \
-        if (!(cond)) {                                                                     \
-            std::fprintf(stderr, "fuzz_optics: %s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            std::fprintf(stderr, __VA_ARGS__);                                             \
-            std::fprintf(stderr, "\n");                                                    \
-            std::abort();                                                                  \
-        }                                                                                  \
-    } while (0)
-
-float pick_float(FuzzedDataProvider &in) {
-    switch (in.ConsumeIntegralInRange<int>(0, 11)) {
-    case 0: return std::numeric_limits<float>::quiet_NaN();
-    case 1: return in.ConsumeBool() ? INFINITY : -INFINITY;
-    case 2: return in.ConsumeBool() ? 0.0f : -0.0f;
-    case 3: return (in.ConsumeBool() ? 1 : -1) * std::numeric_limits<float>::max();
-    case 4: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * std::numeric_limits<float>::denorm_min();
-    case 5: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * std::numeric_limits<float>::min();
-    case 6:
-    case 7: {
-        uint32_t bits = in.ConsumeIntegral<uint32_t>();
-        float f;
-        std::memcpy(&f, &bits, sizeof f);
-        return f;
-    }
-    default: return float(in.ConsumeIntegralInRange<int>(-16, 16)) * 0.125f;
-    }
-}
 
 void pick_vector(FuzzedDataProvider &in, float v[3]) {
-    for (int a = 0; a < 3; ++a) v[a] = pick_float(in);
+    for (int a = 0; a < 3; ++a) v[a] = fuzz::pick_float(in);
 }
 
 bool valid_direction(const float v[3]) {
@@ -67,7 +39,7 @@ void check_directions(FuzzedDataProvider &in) {
     float i[3], n[3], out[3], mirror[3];
     pick_vector(in, i);
     pick_vector(in, n);
-    const float eta = pick_float(in);
+    const float eta = fuzz::pick_float(in);
     const bool valid = valid_direction(i) && valid_direction(n);
 
     kdrt_reflect(i, n, mirror);
@@ -90,7 +62,7 @@ void check_directions(FuzzedDataProvider &in) {
 }
 
 void check_reflectance(FuzzedDataProvider &in) {
-    const float cos_i = pick_float(in), eta = pick_float(in);
+    const float cos_i = fuzz::pick_float(in), eta = fuzz::pick_float(in);
     const bool valid = !std::isnan(cos_i) && valid_ior(eta);
     const float f = kdrt_fresnel_dielectric(cos_i, eta), s = kdrt_fresnel_schlick(cos_i, eta);
     float rs = -1, rp = -1;
@@ -102,7 +74,7 @@ void check_reflectance(FuzzedDataProvider &in) {
 // A sequence of operations on one stack, each checked against what kdrt.h says it does.
 void check_stack(FuzzedDataProvider &in) {
     kdrt_media_stack stack;
-    const float outside = pick_float(in);
+    const float outside = fuzz::pick_float(in);
     const kdrt_result init = kdrt_media_init(&stack, outside);
     FUZZ_CHECK(init == (valid_ior(outside) ? KDRT_SUCCESS : KDRT_ERROR_INVALID_IOR), "kdrt_media_init: %s", kdrt_result_string(init));
     FUZZ_CHECK(stack.count == 0 && valid_ior(stack.outside_ior), "kdrt_media_init left count %u, outside %a", stack.count,
@@ -111,7 +83,7 @@ void check_stack(FuzzedDataProvider &in) {
     bool written = false;  // count written by hand: entries it exposes may hold anything
     for (int step = 0; step < steps; ++step) {
         const uint32_t object = in.ConsumeBool() ? in.ConsumeIntegralInRange<uint32_t>(0, 3) : in.ConsumeIntegral<uint32_t>();
-        const float ior = in.ConsumeBool() ? float(in.ConsumeIntegralInRange<int>(1, 8)) * 0.25f : pick_float(in);
+        const float ior = in.ConsumeBool() ? float(in.ConsumeIntegralInRange<int>(1, 8)) * 0.25f : fuzz::pick_float(in);
         const int priority = in.ConsumeBool() ? in.ConsumeIntegralInRange<int>(0, 2) : in.ConsumeIntegral<int>();
         const kdrt_media_stack before = stack;
         switch (in.ConsumeIntegralInRange<int>(0, 3)) {

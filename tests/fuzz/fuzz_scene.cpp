@@ -4,6 +4,7 @@
 // Relative texture and mesh paths resolve in a folder of this process's own that holds two empty
 // files, t.png and m.obj (the reader only checks that a file can be opened): others are missing.
 #include "scene_file.hpp"
+#include "fuzz_support.hpp"
 
 #include <cstdint>
 #include <cstdio>
@@ -15,16 +16,6 @@
 #include <unistd.h>
 
 namespace {
-
-#define FUZZ_CHECK(cond, ...)                                                              \
-    do {                                                                                   \
-        if (!(cond)) {                                                                     \
-            std::fprintf(stderr, "fuzz_scene: %s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            std::fprintf(stderr, __VA_ARGS__);                                             \
-            std::fprintf(stderr, "\n");                                                    \
-            std::abort();                                                                  \
-        }                                                                                  \
-    } while (0)
 
 // The folder, removed at exit.
 struct BaseDir {

@@ -21,8 +21,8 @@
 #include "kdrt.h"
 #include "common/mesh_io.hpp"
 #include "oracle/reference.hpp"
+#include "fuzz_support.hpp"
 
-#include <fuzzer/FuzzedDataProvider.h>
 
 #include <algorithm>
 #include <cmath>
@@ -37,40 +37,7 @@
 
 namespace {
 
-// What is being checked (the ray, the triangle), printed with a failed check.
-std::string context;
 
-// A broken promise: say which, and abort, which libFuzzer reports as a crash with the input.
-#define FUZZ_CHECK(cond, ...)                                                              \
-    do {                                                                                   \
-        if (!(cond)) {                                                                     \
-            std::fprintf(stderr, "%s", context.c_str());                                   \
-            std::fprintf(stderr, "fuzz_tree: %s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
-            std::fprintf(stderr, __VA_ARGS__);                                             \
-            std::fprintf(stderr, "\n");                                                    \
-            std::abort();                                                                  \
-        }                                                                                  \
-    } while (0)
-
-float pick_float(FuzzedDataProvider &in) {
-    switch (in.ConsumeIntegralInRange<int>(0, 15)) {
-    case 0: return std::numeric_limits<float>::quiet_NaN();
-    case 1: return in.ConsumeBool() ? INFINITY : -INFINITY;
-    case 2: return in.ConsumeBool() ? 0.0f : -0.0f;
-    case 3: return (in.ConsumeBool() ? 1 : -1) * std::numeric_limits<float>::max();
-    case 4: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * std::numeric_limits<float>::denorm_min();
-    case 5: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * std::numeric_limits<float>::min();
-    case 6: return float(in.ConsumeIntegralInRange<int>(-4, 4)) * 1e30f;
-    case 7: return float(in.ConsumeIntegralInRange<int>(-1000, 1000)) * 1e-3f + 1e5f;  // far from the origin
-    case 8: {
-        uint32_t bits = in.ConsumeIntegral<uint32_t>();
-        float f;
-        std::memcpy(&f, &bits, sizeof f);
-        return f;
-    }
-    default: return float(in.ConsumeIntegralInRange<int>(-8, 8)) * 0.25f;  // a grid: coincidences
-    }
-}
 
 // Counts live blocks; fails allocation number fail_at (1-based; 0: never).
 struct Heap {
@@ -119,7 +86,7 @@ Input make_mesh(FuzzedDataProvider &in) {
     const size_t stride = strides[in.ConsumeIntegralInRange<size_t>(0, 7)];
     const uint32_t base_vertices = in.ConsumeIntegralInRange<uint32_t>(0, 24);
     std::vector<float> coords(size_t(base_vertices) * 3);
-    for (float &x : coords) x = pick_float(in);
+    for (float &x : coords) x = fuzz::pick_float(in);
     const bool indexed = in.ConsumeBool();
     const uint32_t base_triangles = in.ConsumeIntegralInRange<uint32_t>(0, 16);
     std::vector<uint32_t> base_indices(indexed ? size_t(base_triangles) * 3 : 0);
@@ -167,16 +134,16 @@ kdrt_build_options make_options(FuzzedDataProvider &in) {
     o.max_depth = in.ConsumeBool() ? 0 : in.ConsumeIntegralInRange<uint32_t>(0, 70);
     o.flags = in.ConsumeIntegralInRange<int>(0, 7) == 0 ? in.ConsumeIntegral<uint32_t>() : in.ConsumeIntegralInRange<uint32_t>(0, 1);
     if (in.ConsumeBool()) {
-        o.sah_traversal_cost = in.ConsumeBool() ? 0.0f : pick_float(in);
-        o.sah_intersection_cost = in.ConsumeBool() ? 0.0f : pick_float(in);
-        o.sah_empty_bonus = in.ConsumeBool() ? 0.0f : pick_float(in);
+        o.sah_traversal_cost = in.ConsumeBool() ? 0.0f : fuzz::pick_float(in);
+        o.sah_intersection_cost = in.ConsumeBool() ? 0.0f : fuzz::pick_float(in);
+        o.sah_empty_bonus = in.ConsumeBool() ? 0.0f : fuzz::pick_float(in);
     }
     return o;
 }
 
 kdrt_ray make_ray(FuzzedDataProvider &in, const std::vector<float> &points) {
     kdrt_ray r;
-    for (float &x : r.org) x = pick_float(in);
+    for (float &x : r.org) x = fuzz::pick_float(in);
     if (!points.empty() && in.ConsumeBool()) {
         // Towards a vertex, or a point on an edge: where watertightness and ties are decided.
         const size_t a = in.ConsumeIntegralInRange<size_t>(0, points.size() / 3 - 1);
@@ -184,10 +151,10 @@ kdrt_ray make_ray(FuzzedDataProvider &in, const std::vector<float> &points) {
         const float s = float(in.ConsumeIntegralInRange<int>(0, 4)) * 0.25f;
         for (int k = 0; k < 3; ++k) r.dir[k] = points[a * 3 + k] + s * (points[b * 3 + k] - points[a * 3 + k]) - r.org[k];
     } else {
-        for (float &x : r.dir) x = pick_float(in);
+        for (float &x : r.dir) x = fuzz::pick_float(in);
     }
-    r.tmin = in.ConsumeBool() ? 0.0f : pick_float(in);
-    r.tmax = in.ConsumeBool() ? INFINITY : pick_float(in);
+    r.tmin = in.ConsumeBool() ? 0.0f : fuzz::pick_float(in);
+    r.tmax = in.ConsumeBool() ? INFINITY : fuzz::pick_float(in);
     return r;
 }
 
@@ -295,7 +262,7 @@ void check_hit_shape(const kdrt_tree *tree, const kdrt_ray &ray, const kdrt_hit 
     if (!is_hit(h)) return;
     const uint32_t triangles = mesh.triangle_count();
     FUZZ_CHECK(h.triangle < triangles, "triangle %u of %u", h.triangle, triangles);
-    context = describe_ray(ray) + describe_triangle(mesh, h.triangle);
+    fuzz::context() = describe_ray(ray) + describe_triangle(mesh, h.triangle);
     double p[3][3];
     mesh.corners(h.triangle, p);
     FUZZ_CHECK(h.t >= std::max(ray.tmin, 0.0f) && h.t <= ray.tmax && std::isfinite(h.t), "t=%a outside [%a, %a]", h.t,
@@ -321,7 +288,7 @@ void check_hit_shape(const kdrt_tree *tree, const kdrt_ray &ray, const kdrt_hit 
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     FuzzedDataProvider in(data, size);
-    context.clear();
+    fuzz::context().clear();
     Input mesh = make_mesh(in);
     const kdrt_triangles &view = mesh.view;
     kdrt_build_options options = make_options(in);
@@ -394,7 +361,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         FUZZ_CHECK(kdrt_occluded(tree, &ray) == hit, "kdrt_occluded disagrees with kdrt_intersect");
         check_hit_shape(brute, ray, h0, as_mesh);
         check_hit_shape(tree, ray, h, as_mesh);
-        context.clear();
+        fuzz::context().clear();
         if (same_answer(h, h0)) continue;
         if (options.intersector == KDRT_INTERSECTOR_FAST &&
             ((hit0 && !fast_defined(as_mesh, h0.triangle, ray)) || (hit && !fast_defined(as_mesh, h.triangle, ray))))
