@@ -48,16 +48,23 @@ std::string le_float(float f)
 
 // Opens a FIFO for writing after `seconds` unless cancelled first, which ends a reader's wait
 // with end-of-file: a loader that blocked on the FIFO comes back late instead of never.
+// The constructor returns once the timer thread waits: the loader forks, and a thread still
+// starting may hold an allocator lock that the child then waits on for ever (Clang 14's
+// AddressSanitizer does not take its allocator's locks around fork, as glibc's malloc does).
 class Unblocker {
 public:
     Unblocker(std::string fifo, int seconds)
         : thread_([this, fifo, seconds] {
               std::unique_lock<std::mutex> lock(mutex_);
+              waiting_ = true;
+              cv_.notify_one();
               if (cv_.wait_for(lock, std::chrono::seconds(seconds), [this] { return cancelled_; })) return;
               fired_ = true;
               std::ofstream unblock(fifo);  // open, then close: EOF for the reader
           })
     {
+        std::unique_lock<std::mutex> lock(mutex_);
+        cv_.wait(lock, [this] { return waiting_; });
     }
     bool fired()  // stops the timer; true when it had to unblock a reader
     {
@@ -74,6 +81,7 @@ public:
 private:
     std::mutex mutex_;
     std::condition_variable cv_;
+    bool waiting_ = false;
     bool cancelled_ = false;
     std::atomic<bool> fired_{false};
     std::thread thread_;

@@ -29,7 +29,9 @@ struct Mesh {
 // message names the request). Assimp runs in a child process (fork), which sends the mesh back:
 // a reader that crashes on a malformed file ("Assimp crashed reading it") fails the load, not the
 // program, and one that takes more than mesh_cpu_seconds of CPU time, plus one a MB of file, is
-// stopped. tools/README.md ("Mesh files") says what is refused and why.
+// stopped. Call it before starting threads where you can: under Clang 14's AddressSanitizer a
+// fork while another thread allocates can leave the child waiting on the allocator's lock (glibc's
+// malloc has no such problem). tools/README.md ("Mesh files") says what is refused and why.
 bool load_mesh(const std::string &path, Mesh &out, std::string &error);
 
 // The heap a load may take: this many times the size of the files it reads, plus the floor.
