@@ -348,8 +348,17 @@ typedef enum kdrt_intersector {
 typedef enum kdrt_build_flags {
     /* Leave out triangles with a NaN or infinite coordinate or an index out of range, and count
        them in kdrt_build_report.skipped_triangles, instead of failing the build. */
-    KDRT_BUILD_SKIP_INVALID_TRIANGLES = 1u << 0
+    KDRT_BUILD_SKIP_INVALID_TRIANGLES = 1u << 0,
+    /* Trace this tree with the scalar kernel even where the CPU has AVX2 (KERNELS): the answers
+       are the same bit for bit, so this is for comparing the kernels and measuring them. */
+    KDRT_BUILD_SCALAR_KERNEL = 1u << 1
 } kdrt_build_flags;
+
+/* The code that runs a tree's queries, chosen when it is built (KERNELS). */
+typedef enum kdrt_kernel {
+    KDRT_KERNEL_SCALAR = 0, /* portable C */
+    KDRT_KERNEL_AVX2 = 1    /* x86-64 with AVX2: a leaf's triangles tested 8 at a time */
+} kdrt_kernel;
 
 /* Start from kdrt_default_build_options(). A zero field means its default, except
    max_leaf_size, where 0 keeps the original's meaning: no tree. */
@@ -392,6 +401,8 @@ typedef struct kdrt_tree_stats {
     uint32_t leaves;
     uint32_t max_depth;     /* depth of the deepest leaf; the root is depth 0 */
     uint64_t triangle_refs; /* references stored in leaves: triangles counted once per leaf */
+    uint32_t blocks;        /* leaf blocks: a leaf's triangles, 8 to a block (KERNELS) */
+    kdrt_kernel kernel;     /* the kernel its queries run */
     size_t bytes;           /* memory the tree owns */
     /* The tree's SAH cost (Wald & Havran 2006; pbrt-v3), in the units of the sah_*_cost options
        the build used (their defaults where 0), whatever the builder: the sum over inner nodes of
@@ -472,7 +483,8 @@ typedef struct kdrt_traversal_stats {
     uint64_t inner_nodes;    /* inner nodes visited */
     uint64_t leaves;         /* leaves visited, empty ones included */
     uint64_t empty_leaves;
-    uint64_t triangle_tests; /* intersection tests run (the mailbox skips repeats) */
+    uint64_t triangle_tests; /* triangles tested (the scalar kernel's mailbox skips repeats) */
+    uint64_t block_tests;    /* 8-triangle block tests (the AVX2 kernel) */
 } kdrt_traversal_stats;
 #ifdef KDRT_TRAVERSAL_STATS
 /* kdrt_intersect(), adding its work to *stats (which may be NULL). */
@@ -641,8 +653,9 @@ extern "C" {
    kdrt__node_* helpers below read or write bits. */
 typedef struct kdrt__node {
     union {
-        float split;        /* inner node: plane position on its axis */
-        uint32_t first_ref; /* leaf: offset of its first entry in kdrt_tree.refs */
+        float split;    /* inner node: plane position on its axis */
+        uint32_t first; /* leaf: its first entry in the builder's refs; in a built tree, its
+                           first block in kdrt_tree.blocks (kdrt__pack_blocks) */
     } u;
     uint32_t bits;
 } kdrt__node;
@@ -655,7 +668,7 @@ typedef char kdrt__node_is_8_bytes[sizeof(kdrt__node) == 8 ? 1 : -1];
 static inline kdrt__node kdrt__node_leaf(uint32_t first_ref, uint32_t count)
 {
     kdrt__node n;
-    n.u.first_ref = first_ref;
+    n.u.first = first_ref;
     n.bits = (count << 2) | KDRT__LEAF;
     return n;
 }
@@ -678,23 +691,31 @@ static inline int kdrt__node_is_leaf(const kdrt__node *n)
 static inline uint32_t kdrt__node_above(const kdrt__node *n) { return n->bits >> 2; }
 static inline uint32_t kdrt__node_count(const kdrt__node *n) { return n->bits >> 2; }
 
-/* A triangle as the intersection tests read it (see kdrt__pack_triangles). */
-typedef struct kdrt__triangle {
-    uint32_t v[3]; /* its corners: x, y, z at kdrt_tree.vertices + 3 * v[k] */
-    uint32_t id;   /* the caller's triangle index: kdrt_hit.triangle, and what ties are broken by */
-} kdrt__triangle;
+/* A leaf's triangles as the intersection tests read them: 8 to a block, each lane a triangle's
+   corners, copied from the caller's buffers, structure of arrays so that the AVX2 kernel loads a
+   coordinate of 8 corners at once. Corners, not edges: a corner two triangles share is the same
+   floats in both, so both transform it identically (the watertight test needs that). A leaf's
+   last block is filled up with copies of its last triangle, which can only repeat its answer. */
+#define KDRT__LANES 8u
+typedef struct kdrt__block {
+    float corner[9][KDRT__LANES]; /* [3 * k + a][lane]: coordinate a of the lane's corner k */
+    uint32_t id[KDRT__LANES]; /* the caller's triangle index: kdrt_hit.triangle, and the tie rule */
+} kdrt__block;
 
-typedef char kdrt__triangle_is_16_bytes[sizeof(kdrt__triangle) == 16 ? 1 : -1];
+typedef char kdrt__block_is_5_cache_lines[sizeof(kdrt__block) == 320 ? 1 : -1];
+
+static int kdrt__cpu_has_avx2(void); /* 1 where the AVX2 kernel is compiled in and can run */
 
 struct kdrt_tree {
     kdrt_triangles mesh; /* borrowed; position_stride resolved (never 0) */
     int watertight;      /* options.intersector: 1 watertight, 0 fast (Moeller-Trumbore) */
+    int simd;            /* 1: the AVX2 kernel (KDRT_KERNEL_AVX2) */
     kdrt_allocator allocator;
     kdrt_aabb bounds;
     kdrt__node *nodes;
-    uint32_t *refs;            /* indices into triangles, leaf by leaf */
-    kdrt__triangle *triangles; /* in the order the leaves, depth first, first refer to them */
-    float *vertices;           /* the triangles' corners, copied, in the order first used */
+    kdrt__block *blocks;  /* the leaves' blocks, leaf by leaf, depth first; 64-byte aligned */
+    void *block_memory;   /* what was allocated for blocks */
+    uint32_t *block_refs; /* [b]: the reference number of block b's lane 0 (inspection) */
     kdrt_tree_stats stats;
 };
 
@@ -1859,7 +1880,7 @@ typedef struct kdrt__task {
 } kdrt__task;
 
 typedef struct kdrt__top {
-    kdrt__node nodes[KDRT__TOP_NODES]; /* the cut's inner nodes; a leaf here is task u.first_ref */
+    kdrt__node nodes[KDRT__TOP_NODES]; /* the cut's inner nodes; a leaf here is task u.first */
     uint32_t node_count;
     kdrt__task tasks[1u << KDRT__TASK_DEPTH];
     uint32_t task_count;
@@ -1915,7 +1936,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         t->out.leaves = t->out.depth_reached = 0;
         t->refs = refs, t->n = n, t->depth = depth, t->budget = budget, t->result = KDRT_SUCCESS;
         memcpy(t->lo, lo, sizeof t->lo), memcpy(t->hi, hi, sizeof t->hi);
-        top->nodes[node] = kdrt__node_leaf(top->task_count++, 0); /* first_ref: the task */
+        top->nodes[node] = kdrt__node_leaf(top->task_count++, 0); /* u.first: the task */
         return KDRT_SUCCESS;
     }
     kdrt__free(b->allocator, refs);
@@ -1936,12 +1957,12 @@ static void kdrt__join(kdrt__builder *b, const kdrt__top *top, uint32_t i)
     const kdrt__node *n = &top->nodes[i];
     uint32_t node = b->node_count, k;
     if (kdrt__node_is_leaf(n)) {
-        const kdrt__builder *t = &top->tasks[n->u.first_ref].out;
+        const kdrt__builder *t = &top->tasks[n->u.first].out;
         for (k = 0; k < t->node_count; ++k) {
             const kdrt__node *c = &t->nodes[k];
             b->nodes[node + k] =
                 kdrt__node_is_leaf(c)
-                    ? kdrt__node_leaf(c->u.first_ref + b->ref_count, kdrt__node_count(c))
+                    ? kdrt__node_leaf(c->u.first + b->ref_count, kdrt__node_count(c))
                     : kdrt__node_inner(kdrt__node_axis(c), c->u.split, kdrt__node_above(c) + node);
         }
         if (t->ref_count)
@@ -2007,112 +2028,57 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
     return r;
 }
 
-/* ==== packing: the triangles laid out for the traversal ==== */
+/* ==== packing: the leaves' triangles in blocks ==== */
 
-/* A hash of a position's bits (MurmurHash3's finaliser over the three words). */
-static uint32_t kdrt__hash_position(const float p[3])
+/* Lays the leaves' triangles out in blocks once a builder has made the nodes and refs: each leaf,
+   in node order (depth first), gets ceil(count / 8) consecutive blocks of its triangles' corners,
+   and its node's u.first becomes its first block. block_refs numbers the references the same
+   way, leaf by leaf, for the inspection API. The floats are the caller's, so no answer changes. */
+static kdrt_result kdrt__pack_blocks(const kdrt_allocator *a, const kdrt_triangles *m,
+                                     kdrt__node *nodes, uint32_t node_count, const uint32_t *refs,
+                                     kdrt_tree *tree)
 {
-    uint32_t w[3], h;
-    memcpy(w, p, sizeof w);
-    h = ((w[0] * 0x9E3779B1u) ^ w[1]) * 0x9E3779B1u ^ w[2];
-    h ^= h >> 16, h *= 0x85EBCA6Bu;
-    h ^= h >> 13, h *= 0xC2B2AE35u;
-    return h ^ (h >> 16);
-}
-
-/* Lays the triangles out for the traversal once a builder has made the nodes and refs. Every
-   triangle a leaf refers to gets a 16-byte record, in the order a depth-first walk of the leaves
-   (below child first) first meets it, and refs are rewritten to index the records; the records'
-   corners index a copy of the vertices in the order the records first use them, each distinct
-   position once (compared bit for bit, so the shared corners of a soup are shared too). A leaf's
-   triangles and its neighbours' thus lie close together in both arrays. The floats are the
-   caller's, so no answer changes, and neither does the order: ties are broken by the caller's
-   triangle index, which each record keeps. (A record indexes its corners rather than hold their
-   floats, which would take 40 bytes instead of 16 and share nothing.) */
-static kdrt_result kdrt__pack_triangles(const kdrt_allocator *a, const kdrt_triangles *m,
-                                        const kdrt__node *nodes, uint32_t *refs, uint32_t ref_count,
-                                        kdrt_tree *tree, uint32_t *out_triangles,
-                                        uint32_t *out_vertices)
-{
-    uint32_t *slot, *table, stack[KDRT_MAX_DEPTH], sp = 0, node = 0, count = 0, unique = 0, i;
-    size_t corners, size, h;
-    float *seen;
-    int k;
-
-    *out_triangles = *out_vertices = 0;
-    if (ref_count == 0) return KDRT_SUCCESS;
-
-    /* slot[caller's index]: its record, or KDRT_INVALID_ID while no leaf has referred to it.
-       (kdrt__check_view made sure triangle_count * 12 bytes is addressable.) */
-    slot = (uint32_t *)kdrt__alloc(a, (size_t)m->triangle_count * sizeof(uint32_t));
-    if (!slot) return KDRT_ERROR_OUT_OF_MEMORY;
-    memset(slot, 0xFF, (size_t)m->triangle_count * sizeof(uint32_t));
-    for (;;) {
-        const kdrt__node *n = &nodes[node];
-        if (!kdrt__node_is_leaf(n)) {
-            KDRT_ASSERT(sp < KDRT_MAX_DEPTH); /* the build bounds the depth */
-            stack[sp++] = kdrt__node_above(n);
-            node += 1;
-            continue;
-        }
-        for (i = 0; i < kdrt__node_count(n); ++i) {
-            uint32_t tri = refs[n->u.first_ref + i];
-            if (slot[tri] == KDRT_INVALID_ID) slot[tri] = count++;
-        }
-        if (sp == 0) break;
-        node = stack[--sp];
+    uint32_t i, count = 0, b = 0, ref = 0;
+    size_t bytes;
+    for (i = 0; i < node_count; ++i)
+        if (kdrt__node_is_leaf(&nodes[i]))
+            count += (kdrt__node_count(&nodes[i]) + KDRT__LANES - 1u) / KDRT__LANES;
+    tree->stats.blocks = count; /* at most the references, so no overflow */
+    if (count == 0) {
+        for (i = 0; i < node_count; ++i)
+            if (kdrt__node_is_leaf(&nodes[i])) nodes[i].u.first = 0;
+        return KDRT_SUCCESS;
     }
-    corners = 3 * (size_t)count;
-    /* The records take 16 / 3 bytes a corner, the table below 28. */
-    if (corners > (size_t)-1 / 28u) {
-        kdrt__free(a, slot);
+    if (!kdrt__mul_size(count, sizeof(kdrt__block), &bytes) || bytes > (size_t)-1 - 63u)
         return KDRT_ERROR_SIZE_OVERFLOW;
-    }
-    tree->triangles = (kdrt__triangle *)kdrt__alloc(a, (size_t)count * sizeof(kdrt__triangle));
-    if (!tree->triangles) {
-        kdrt__free(a, slot);
-        return KDRT_ERROR_OUT_OF_MEMORY;
-    }
-    for (i = 0; i < m->triangle_count; ++i) {
-        if (slot[i] == KDRT_INVALID_ID) continue; /* skipped, zero-area, or in no leaf */
-        kdrt__triangle_indices(m, i, tree->triangles[slot[i]].v); /* the caller's, for now */
-        tree->triangles[slot[i]].id = i;
-    }
-    for (i = 0; i < ref_count; ++i) refs[i] = slot[refs[i]];
-    kdrt__free(a, slot);
-    *out_triangles = count;
-
-    /* The distinct positions go to seen as they are first met; table, a power of two at least
-       twice the corners (so at most half full), holds their indices, found by linear probing. */
-    size = 1;
-    while (size < 2 * corners) size *= 2;
-    table = (uint32_t *)kdrt__alloc(a, size * sizeof(uint32_t) + corners * 3 * sizeof(float));
-    if (!table) return KDRT_ERROR_OUT_OF_MEMORY;
-    seen = (float *)(table + size);
-    memset(table, 0xFF, size * sizeof(uint32_t));
-    for (i = 0; i < count; ++i) {
-        for (k = 0; k < 3; ++k) {
-            uint32_t *corner = &tree->triangles[i].v[k];
-            float p[3];
-            kdrt__load_vertex(m, *corner, p);
-            for (h = kdrt__hash_position(p) & (size - 1); table[h] != KDRT_INVALID_ID;
-                 h = (h + 1) & (size - 1))
-                if (memcmp(seen + 3 * (size_t)table[h], p, sizeof p) == 0) break;
-            if (table[h] == KDRT_INVALID_ID) {
-                memcpy(seen + 3 * (size_t)unique, p, sizeof p);
-                table[h] = unique++;
+    tree->block_memory = kdrt__alloc(a, bytes + 63u);
+    tree->block_refs = (uint32_t *)kdrt__alloc(a, (size_t)count * sizeof(uint32_t));
+    if (!tree->block_memory || !tree->block_refs) return KDRT_ERROR_OUT_OF_MEMORY;
+    /* 64-byte aligned: a block is five whole cache lines. */
+    tree->blocks = (kdrt__block *)((char *)tree->block_memory +
+                                   ((64u - (uintptr_t)tree->block_memory % 64u) % 64u));
+    for (i = 0; i < node_count; ++i) {
+        kdrt__node *n = &nodes[i];
+        uint32_t first, total, k, lane;
+        if (!kdrt__node_is_leaf(n)) continue;
+        first = n->u.first, total = kdrt__node_count(n);
+        n->u.first = b;
+        for (k = 0; k < total; k += KDRT__LANES, ++b) {
+            kdrt__block *block = &tree->blocks[b];
+            tree->block_refs[b] = ref + k;
+            for (lane = 0; lane < KDRT__LANES; ++lane) {
+                const uint32_t tri = refs[first + (k + lane < total ? k + lane : total - 1u)];
+                float p[3][3];
+                int c, axis;
+                kdrt__load_triangle(m, tri, p);
+                for (c = 0; c < 3; ++c)
+                    for (axis = 0; axis < 3; ++axis) block->corner[3 * c + axis][lane] = p[c][axis];
+                block->id[lane] = tri;
             }
-            *corner = table[h];
         }
+        ref += total;
     }
-    tree->vertices = (float *)kdrt__alloc(a, (size_t)unique * 3 * sizeof(float));
-    if (!tree->vertices) {
-        kdrt__free(a, table);
-        return KDRT_ERROR_OUT_OF_MEMORY;
-    }
-    memcpy(tree->vertices, seen, (size_t)unique * 3 * sizeof(float));
-    kdrt__free(a, table);
-    *out_vertices = unique;
+    KDRT_ASSERT(b == count);
     return KDRT_SUCCESS;
 }
 
@@ -2178,7 +2144,8 @@ static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
         opt->intersector != KDRT_INTERSECTOR_WATERTIGHT &&
         opt->intersector != KDRT_INTERSECTOR_FAST)
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt->flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) return KDRT_ERROR_INVALID_OPTION;
+    if (opt->flags & ~(uint32_t)(KDRT_BUILD_SKIP_INVALID_TRIANGLES | KDRT_BUILD_SCALAR_KERNEL))
+        return KDRT_ERROR_INVALID_OPTION;
     if ((opt->allocator.alloc == NULL) != (opt->allocator.free == NULL))
         return KDRT_ERROR_NULL_ARGUMENT;
     return KDRT_SUCCESS;
@@ -2211,6 +2178,8 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_trian
     memset(tree, 0, sizeof *tree);
     tree->mesh = *m;
     tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
+    tree->simd = !(opt->flags & KDRT_BUILD_SCALAR_KERNEL) && kdrt__cpu_has_avx2();
+    tree->stats.kernel = tree->simd ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR;
     tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
     return tree;
@@ -2339,23 +2308,20 @@ static kdrt_result kdrt__build_nodes(kdrt__builder *b, const kdrt_build_options 
 }
 
 /* Stats: the builder's arrays, trimmed, go to the tree, and its statistics are filled in. */
-static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triangles,
-                              uint32_t records, uint32_t vertices)
+static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triangles)
 {
     kdrt__shrink(b->allocator, (void **)&b->nodes, &b->node_capacity, b->node_count,
                  sizeof(kdrt__node));
-    kdrt__shrink(b->allocator, (void **)&b->refs, &b->ref_capacity, b->ref_count, sizeof(uint32_t));
     tree->nodes = b->nodes;
-    tree->refs = b->refs;
+    b->nodes = NULL;
     tree->stats.triangles = triangles;
     tree->stats.nodes = b->node_count;
     tree->stats.leaves = b->leaves;
     tree->stats.max_depth = b->depth_reached;
     tree->stats.triangle_refs = b->ref_count;
     tree->stats.bytes = sizeof *tree + (size_t)b->node_capacity * sizeof(kdrt__node) +
-                        (size_t)b->ref_capacity * sizeof(uint32_t) +
-                        (size_t)records * sizeof(kdrt__triangle) +
-                        (size_t)vertices * 3 * sizeof(float);
+                        (size_t)tree->stats.blocks * (sizeof(kdrt__block) + sizeof(uint32_t)) +
+                        (tree->block_memory ? 63u : 0u);
     tree->stats.sah_cost = kdrt__sah_cost(tree, b->sah_trav, b->sah_isect);
 }
 
@@ -2367,7 +2333,7 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     kdrt__builder b;
     kdrt_tree *tree;
     float *scratch = NULL;
-    uint32_t *valid = NULL, n = 0, records = 0, vertices = 0;
+    uint32_t *valid = NULL, n = 0;
     kdrt_result r;
 
     if (report) {
@@ -2386,14 +2352,13 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     r = kdrt__prepare_triangles(&b, &m, opt.flags, &tree->bounds, &scratch, &valid, &n, report);
     if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, &opt, valid, n, &tree->bounds);
     if (r == KDRT_SUCCESS)
-        r = kdrt__pack_triangles(&opt.allocator, &m, b.nodes, b.refs, b.ref_count, tree, &records,
-                                 &vertices);
-    if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n, records, vertices);
+        r = kdrt__pack_blocks(&opt.allocator, &m, b.nodes, b.node_count, b.refs, tree);
+    if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n);
     kdrt__free(&opt.allocator, scratch);
+    kdrt__free(&opt.allocator, b.refs); /* the blocks hold the triangles now */
     if (r != KDRT_SUCCESS) {
         kdrt__free(&opt.allocator, b.nodes);
-        kdrt__free(&opt.allocator, b.refs);
-        kdrt_tree_free(tree); /* and the triangles packed so far */
+        kdrt_tree_free(tree); /* and the blocks packed so far */
         return r;
     }
     *out_tree = tree;
@@ -2406,9 +2371,8 @@ KDRT_API void kdrt_tree_free(kdrt_tree *tree)
     if (!tree) return;
     a = tree->allocator;
     kdrt__free(&a, tree->nodes);
-    kdrt__free(&a, tree->refs);
-    kdrt__free(&a, tree->triangles);
-    kdrt__free(&a, tree->vertices);
+    kdrt__free(&a, tree->block_memory);
+    kdrt__free(&a, tree->block_refs);
     kdrt__free(&a, tree);
 }
 
@@ -2457,7 +2421,9 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
         info.axis = -1;
         info.below = info.above = KDRT_INVALID_ID;
         info.triangle_count = kdrt__node_count(n);
-        info.first_reference = n->u.first_ref;
+        /* An empty leaf has no block: its references would start where the next leaf's do. */
+        info.first_reference = n->u.first < tree->stats.blocks ? tree->block_refs[n->u.first]
+                                                               : (uint32_t)tree->stats.triangle_refs;
     } else {
         info.axis = (int)kdrt__node_axis(n);
         info.split = n->u.split;
@@ -2471,9 +2437,17 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
 KDRT_API kdrt_result kdrt_tree_reference(const kdrt_tree *tree, uint32_t reference,
                                          uint32_t *out_triangle)
 {
+    uint32_t lo = 0, hi;
     if (!tree || !out_triangle) return KDRT_ERROR_NULL_ARGUMENT;
     if ((uint64_t)reference >= tree->stats.triangle_refs) return KDRT_ERROR_INDEX_OUT_OF_RANGE;
-    *out_triangle = tree->triangles[tree->refs[reference]].id; /* refs index the packed records */
+    /* The last block starting at or before it; block_refs ascends. */
+    hi = tree->stats.blocks - 1u;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo + 1u) / 2u;
+        if (tree->block_refs[mid] <= reference) lo = mid;
+        else hi = mid - 1u;
+    }
+    *out_triangle = tree->blocks[lo].id[reference - tree->block_refs[lo]];
     return KDRT_SUCCESS;
 }
 
@@ -2498,19 +2472,27 @@ static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
     return 1;
 }
 
+/* The corners of a block's lane: p[k][a] = coordinate a of corner k. */
+static void kdrt__lane_corners(const kdrt__block *block, uint32_t lane, float p[3][3])
+{
+    int k, a;
+    for (k = 0; k < 3; ++k)
+        for (a = 0; a < 3; ++a) p[k][a] = block->corner[3 * k + a][lane];
+}
+
 /* Watertight test (Woop, Benthin & Wald, JCGT 2013). The corners are moved to the ray's origin
    and sheared so the ray runs along +z; the 2D edge functions then depend only on the two corners
    of each edge, so triangles sharing that edge compute it with the same value and opposite sign,
-   and a ray through the edge or a shared vertex hits at least one of them. */
-static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangle *tri,
+   and a ray through the edge or a shared vertex hits at least one of them. The AVX2 kernel's
+   kdrt__block_watertight_avx2 is the same arithmetic, operation for operation. */
+static int kdrt__intersect_watertight(const kdrt__block *block, uint32_t lane,
                                       const kdrt__ray_setup *s, kdrt_hit *best)
 {
-    const float *p[3];
-    float x[3], y[3], z[3];
+    float p[3][3], x[3], y[3], z[3];
     double e0, e1, e2, det, inv_det;
     const int kx = s->kx, ky = s->ky, kz = s->kz;
     int k;
-    for (k = 0; k < 3; ++k) p[k] = vertices + 3 * (size_t)tri->v[k];
+    kdrt__lane_corners(block, lane, p);
     for (k = 0; k < 3; ++k) {
         float dx = p[k][kx] - s->org[kx], dy = p[k][ky] - s->org[ky], dz = p[k][kz] - s->org[kz];
         x[k] = dx - s->shear_x * dz;
@@ -2530,19 +2512,19 @@ static int kdrt__intersect_watertight(const float *vertices, const kdrt__triangl
     det = e0 + e1 + e2;
     if (det == 0.0) return 0; /* the ray lies in the triangle's plane, sheared exactly */
     inv_det = 1.0 / det;
-    return kdrt__accept(best, tri->id, (float)((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det),
+    return kdrt__accept(best, block->id[lane], (float)((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det),
                         (float)(e1 * inv_det), (float)(e2 * inv_det), s);
 }
 
 /* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an
-   edge are computed differently, so a ray through the edge can miss both. */
-static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri,
-                                const kdrt__ray_setup *s, kdrt_hit *best)
+   edge are computed differently, so a ray through the edge can miss both. The AVX2 kernel's
+   kdrt__block_fast_avx2 is the same arithmetic, operation for operation. */
+static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const kdrt__ray_setup *s,
+                                kdrt_hit *best)
 {
-    const float *p[3];
-    float e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
+    float p[3][3], e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
     int a;
-    for (a = 0; a < 3; ++a) p[a] = vertices + 3 * (size_t)tri->v[a];
+    kdrt__lane_corners(block, lane, p);
     for (a = 0; a < 3; ++a)
         e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a], tv[a] = s->org[a] - p[0][a];
     kdrt__cross_float(s->dir, e2, pv);
@@ -2555,8 +2537,147 @@ static int kdrt__intersect_fast(const float *vertices, const kdrt__triangle *tri
     v = (s->dir[0] * qv[0] + s->dir[1] * qv[1] + s->dir[2] * qv[2]) * inv_det;
     if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
-    return kdrt__accept(best, tri->id, t, u, v, s);
+    return kdrt__accept(best, block->id[lane], t, u, v, s);
 }
+
+/* ==== the AVX2 kernel: 8 triangles at a time ==== */
+
+/* Compiled with the compiler's per-function target attribute, so no -mavx2 is needed, and chosen
+   when a tree is built if the CPU has AVX2 (kdrt__cpu_has_avx2). Not where KDRT_NO_SIMD is
+   defined, nor off x86-64 or on compilers without the attribute (MSVC: the scalar kernel). The
+   target is "avx2" alone, not FMA: without FMA instructions the compiler cannot fuse a multiply
+   and an add, so each operation rounds as the scalar kernel's does and the answers are the same
+   bit for bit. */
+#if !defined(KDRT_NO_SIMD) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define KDRT__AVX2 1
+#include <immintrin.h>
+#define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
+
+static int kdrt__cpu_has_avx2(void)
+{
+    __builtin_cpu_init(); /* idempotent; needed when called before constructors have run */
+    return __builtin_cpu_supports("avx2") != 0;
+}
+
+/* The lanes of mask (one bit a lane) offered to kdrt__accept in turn: the order does not matter,
+   as kdrt__accept keeps the lowest (t, triangle) whatever the order it is offered them. */
+static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
+                              const float *t, const float *u, const float *v,
+                              const kdrt__ray_setup *s)
+{
+    int found = 0;
+    for (; mask; mask &= mask - 1u) {
+        const unsigned lane = (unsigned)__builtin_ctz(mask);
+        found |= kdrt__accept(best, block->id[lane], t[lane], u[lane], v[lane], s);
+    }
+    return found;
+}
+
+/* The 8 lanes of a float vector as two vectors of 4 doubles (exact). */
+KDRT__TARGET_AVX2 static inline void kdrt__widen(__m256 x, __m256d out[2])
+{
+    out[0] = _mm256_cvtps_pd(_mm256_castps256_ps128(x));
+    out[1] = _mm256_cvtps_pd(_mm256_extractf128_ps(x, 1));
+}
+
+/* kdrt__intersect_watertight on a block's 8 lanes. */
+KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *block,
+                                                         const kdrt__ray_setup *s, kdrt_hit *best)
+{
+    const int kx = s->kx, ky = s->ky, kz = s->kz;
+    const __m256 ox = _mm256_set1_ps(s->org[kx]), oy = _mm256_set1_ps(s->org[ky]);
+    const __m256 oz = _mm256_set1_ps(s->org[kz]);
+    const __m256 sx = _mm256_set1_ps(s->shear_x), sy = _mm256_set1_ps(s->shear_y);
+    const __m256 sz = _mm256_set1_ps(s->shear_z);
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d x[3][2], y[3][2], z[3][2];
+    float t[KDRT__LANES], u[KDRT__LANES], v[KDRT__LANES];
+    unsigned mask = 0;
+    int k, h;
+    for (k = 0; k < 3; ++k) {
+        const __m256 dx = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kx]), ox);
+        const __m256 dy = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + ky]), oy);
+        const __m256 dz = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kz]), oz);
+        kdrt__widen(_mm256_sub_ps(dx, _mm256_mul_ps(sx, dz)), x[k]);
+        kdrt__widen(_mm256_sub_ps(dy, _mm256_mul_ps(sy, dz)), y[k]);
+        kdrt__widen(_mm256_mul_ps(sz, dz), z[k]);
+    }
+    {
+        __m256d e0[2], e1[2], e2[2], det[2];
+        for (h = 0; h < 2; ++h) {
+            __m256d neg, pos, keep;
+            e0[h] = _mm256_sub_pd(_mm256_mul_pd(x[2][h], y[1][h]), _mm256_mul_pd(y[2][h], x[1][h]));
+            e1[h] = _mm256_sub_pd(_mm256_mul_pd(x[0][h], y[2][h]), _mm256_mul_pd(y[0][h], x[2][h]));
+            e2[h] = _mm256_sub_pd(_mm256_mul_pd(x[1][h], y[0][h]), _mm256_mul_pd(y[1][h], x[0][h]));
+            neg = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(e0[h], zero, _CMP_LT_OQ),
+                                            _mm256_cmp_pd(e1[h], zero, _CMP_LT_OQ)),
+                               _mm256_cmp_pd(e2[h], zero, _CMP_LT_OQ));
+            pos = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(e0[h], zero, _CMP_GT_OQ),
+                                            _mm256_cmp_pd(e1[h], zero, _CMP_GT_OQ)),
+                               _mm256_cmp_pd(e2[h], zero, _CMP_GT_OQ));
+            det[h] = _mm256_add_pd(_mm256_add_pd(e0[h], e1[h]), e2[h]);
+            /* not (negative and positive), and det != 0 (unordered: NaN goes on, as in C) */
+            keep = _mm256_andnot_pd(_mm256_and_pd(neg, pos), _mm256_cmp_pd(det[h], zero, _CMP_NEQ_UQ));
+            mask |= (unsigned)_mm256_movemask_pd(keep) << (4 * h);
+        }
+        if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
+        for (h = 0; h < 2; ++h) {
+            const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det[h]);
+            const __m256d num = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(e0[h], z[0][h]),
+                                                            _mm256_mul_pd(e1[h], z[1][h])),
+                                              _mm256_mul_pd(e2[h], z[2][h]));
+            _mm_storeu_ps(t + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(num, inv_det)));
+            _mm_storeu_ps(u + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e1[h], inv_det)));
+            _mm_storeu_ps(v + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e2[h], inv_det)));
+        }
+    }
+    return kdrt__accept_lanes(best, block, mask, t, u, v, s);
+}
+
+/* kdrt__intersect_fast on a block's 8 lanes. */
+KDRT__TARGET_AVX2 static int kdrt__block_fast_avx2(const kdrt__block *block,
+                                                   const kdrt__ray_setup *s, kdrt_hit *best)
+{
+    __m256 p0[3], e1[3], e2[3], tv[3], d[3], pv[3], qv[3], det, inv_det, u, v, t, keep;
+    const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+    float tt[KDRT__LANES], uu[KDRT__LANES], vv[KDRT__LANES];
+    unsigned mask;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        p0[a] = _mm256_load_ps(block->corner[a]);
+        e1[a] = _mm256_sub_ps(_mm256_load_ps(block->corner[3 + a]), p0[a]);
+        e2[a] = _mm256_sub_ps(_mm256_load_ps(block->corner[6 + a]), p0[a]);
+        tv[a] = _mm256_sub_ps(_mm256_set1_ps(s->org[a]), p0[a]);
+        d[a] = _mm256_set1_ps(s->dir[a]);
+    }
+#define KDRT__CROSS(a, b, c)                                                                   \
+    (c[0] = _mm256_sub_ps(_mm256_mul_ps(a[1], b[2]), _mm256_mul_ps(a[2], b[1])),               \
+     c[1] = _mm256_sub_ps(_mm256_mul_ps(a[2], b[0]), _mm256_mul_ps(a[0], b[2])),               \
+     c[2] = _mm256_sub_ps(_mm256_mul_ps(a[0], b[1]), _mm256_mul_ps(a[1], b[0])))
+#define KDRT__DOT(a, b)                                                                        \
+    _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1])),          \
+                  _mm256_mul_ps(a[2], b[2]))
+    KDRT__CROSS(d, e2, pv);
+    det = KDRT__DOT(e1, pv);
+    inv_det = _mm256_div_ps(one, det);
+    u = _mm256_mul_ps(KDRT__DOT(tv, pv), inv_det);
+    KDRT__CROSS(tv, e1, qv);
+    v = _mm256_mul_ps(KDRT__DOT(d, qv), inv_det);
+    t = _mm256_mul_ps(KDRT__DOT(e2, qv), inv_det);
+#undef KDRT__CROSS
+#undef KDRT__DOT
+    keep = _mm256_and_ps(_mm256_cmp_ps(det, zero, _CMP_NEQ_UQ),
+                         _mm256_and_ps(_mm256_cmp_ps(u, zero, _CMP_GE_OQ), _mm256_cmp_ps(u, one, _CMP_LE_OQ)));
+    keep = _mm256_and_ps(keep, _mm256_and_ps(_mm256_cmp_ps(v, zero, _CMP_GE_OQ),
+                                             _mm256_cmp_ps(_mm256_add_ps(u, v), one, _CMP_LE_OQ)));
+    mask = (unsigned)_mm256_movemask_ps(keep);
+    if (!mask) return 0;
+    _mm256_storeu_ps(tt, t), _mm256_storeu_ps(uu, u), _mm256_storeu_ps(vv, v);
+    return kdrt__accept_lanes(best, block, mask, tt, uu, vv, s);
+}
+#else
+static int kdrt__cpu_has_avx2(void) { return 0; }
+#endif
 
 /* ==== traversal ==== */
 
@@ -2581,8 +2702,8 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node = 0;
-    /* Mailbox: the records tested last, by their low bits. A triangle split across leaves is
-       tested once per ray: a second test could only repeat the first one's answer. */
+    /* Mailbox (scalar kernel): the triangles tested last, by their low bits. A triangle split
+       across leaves is tested once per ray: a second test could only repeat the first answer. */
     uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
     float t0, t1;
@@ -2628,20 +2749,33 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
             continue;
         }
         {
-            /* Indexed, not a pointer formed up front: an empty tree has no refs array at all. */
-            uint32_t i, first = n->u.first_ref, count = kdrt__node_count(n);
+            /* Indexed, not a pointer formed up front: an empty tree has no blocks at all. */
+            uint32_t i, first = n->u.first, count = kdrt__node_count(n);
             KDRT__COUNT(stats, leaves, 1);
             KDRT__COUNT(stats, empty_leaves, count == 0);
+#ifdef KDRT__AVX2
+            if (tree->simd) {
+                for (i = 0; i < count; i += KDRT__LANES) {
+                    const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
+                    int found = tree->watertight ? kdrt__block_watertight_avx2(block, &s, best)
+                                                 : kdrt__block_fast_avx2(block, &s, best);
+                    KDRT__COUNT(stats, block_tests, 1);
+                    KDRT__COUNT(stats, triangle_tests, count - i < KDRT__LANES ? count - i : KDRT__LANES);
+                    if (found && any_hit) return 1;
+                }
+                count = 0; /* done: the scalar loop below has nothing left */
+            }
+#endif
             for (i = 0; i < count; ++i) {
-                const uint32_t ref = tree->refs[first + i];
-                const kdrt__triangle *tri = tree->triangles + ref;
-                uint32_t *box = &tested[ref & (KDRT__MAILBOX - 1u)];
+                const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
+                const uint32_t lane = i % KDRT__LANES, id = block->id[lane];
+                uint32_t *box = &tested[id & (KDRT__MAILBOX - 1u)];
                 int found;
-                if (*box == ref) continue;
-                *box = ref;
+                if (*box == id) continue;
+                *box = id;
                 KDRT__COUNT(stats, triangle_tests, 1);
-                found = tree->watertight ? kdrt__intersect_watertight(tree->vertices, tri, &s, best)
-                                         : kdrt__intersect_fast(tree->vertices, tri, &s, best);
+                found = tree->watertight ? kdrt__intersect_watertight(block, lane, &s, best)
+                                         : kdrt__intersect_fast(block, lane, &s, best);
                 if (found && any_hit) return 1;
             }
         }

@@ -652,17 +652,12 @@ TEST_CASE("hard: coplanar overlapping triangles: the lower caller index wins, wh
             }
 }
 
-TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed mesh does, left-out triangles nothing", "[hard]") {
-    // THE TREE: nodes, references, a 16-byte record per triangle and each distinct corner
-    // position once, 12 bytes; kdrt_tree_stats.bytes counts them and the tree struct itself.
+TEST_CASE("hard: the tree's blocks: a soup costs what its indexed mesh does, left-out triangles nothing", "[hard]") {
+    // THE TREE: nodes, and each leaf's triangles in blocks of 8 (320 bytes, 64-byte aligned) with
+    // their first reference number (4 bytes); kdrt_tree_stats.bytes counts them and the tree
+    // struct itself.
     common::Mesh mesh = kt::sphere(16, 24, 2.0);
     common::Mesh soup = kt::as_soup(mesh);
-    std::set<std::array<uint32_t, 3>> distinct;
-    for (uint32_t v = 0; v < mesh.vertex_count(); ++v) {
-        std::array<uint32_t, 3> bits;
-        std::memcpy(bits.data(), &mesh.positions[3 * v], 12);
-        distinct.insert(bits);
-    }
     // The same mesh with zero-area triangles and (skipped) ones indexing past the vertices.
     common::Mesh extra = mesh;
     extra.name = "sphere_with_left_out_triangles";
@@ -683,16 +678,18 @@ TEST_CASE("hard: the tree's copy of the triangles: a soup costs what its indexed
                 kdrt_tree_get_stats(raw, &st[k]);
                 kdrt_tree_free(raw);
             }
-            const size_t copy = size_t(st[0].triangles) * 16 + distinct.size() * 12;
-            const size_t counted = size_t(st[0].nodes) * 8 + size_t(st[0].triangle_refs) * 4 + copy;
+            const size_t counted = size_t(st[0].nodes) * 8 + size_t(st[0].blocks) * (320 + 4);
             CHECK(st[0].triangles == mesh.triangle_count());
+            CHECK(uint64_t(st[0].blocks) * 8 >= st[0].triangle_refs);  // 8 triangles to a block at most
+            CHECK(st[0].blocks <= st[0].triangle_refs);                // and one at least
             CHECK(st[0].bytes >= counted);
-            CHECK(st[0].bytes <= counted + 1024);  // the tree struct
+            CHECK(st[0].bytes <= counted + 1024);  // the tree struct and the blocks' alignment
             for (int k = 1; k < 3; ++k) {
                 INFO(meshes[k]->name);
                 CHECK(st[k].triangles == st[0].triangles);
                 CHECK(st[k].nodes == st[0].nodes);
                 CHECK(st[k].triangle_refs == st[0].triangle_refs);
+                CHECK(st[k].blocks == st[0].blocks);
                 CHECK(st[k].bytes == st[0].bytes);
             }
         }
