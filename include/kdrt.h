@@ -52,6 +52,8 @@
      These three exist to measure the choice: the defaults are the measured best, and any value
      in range builds a valid tree, if not the same one. A value out of range stops the
      compilation with an #error.
+       KDRT_NO_SIMD              leave the AVX2 kernel out: every tree runs the scalar one
+                                 (KERNELS)
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -153,7 +155,12 @@
      A triangle cut by the plane is clipped to the node's box and that polygon split by the
      plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when
      it holds at most max_leaf_size triangles, at max_depth, or when no split within its
-     reference budget is cheaper than testing all its triangles (the costs are options). It is
+     reference budget is cheaper than testing all its triangles (the costs are options). A leaf
+     is priced by its blocks of 8 triangles (KERNELS), ceil(n / 8) block tests, not n triangle
+     tests, so the SAH stops where one block test is cheaper than more splits: on the meshes of
+     bench/README.md leaves of about 20 triangles, half the references and a fourteenth of the
+     nodes of triangle pricing, 2.8 times faster builds and 30 to 50% faster rays on both
+     kernels. It is
      the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
      Reference budget: a triangle a plane cuts is referred to on both sides, and some inputs (a
      fan of triangles round one vertex, crossing slivers) would multiply references without
@@ -161,32 +168,44 @@
      made only if its children hold at most their node's budget together, and they share it in
      proportion to what each holds. So every level of the tree holds at most 8 n references
      (n: the triangles in the tree), which bounds the build whatever the input: the tree's
-     references at most 8 n (32 bytes a triangle), its nodes at most 12 n a level (an inner
+     references at most 8 n (in blocks of 8, 40 bytes a reference, and a leaf's last block
+     partly filled), its nodes at most 12 n a level (an inner
      node holds 2 references or more); the build's reference arrays at most 8 n at any moment
      (28 bytes each: above the exact region each node's array is freed once its children have
      theirs), and sorted events for at most one budget's worth at a time (48 bytes a
      reference); O(n) work a level, sorts included (long ones are radix sorts), over at most
-     max_depth levels: O(n log n) with the default max_depth. Ordinary meshes need 2.5 to 4.5
-     references a triangle and keep their trees; a fan of triangles round one vertex gets big
+     max_depth levels: O(n log n) with the default max_depth. Ordinary meshes stay far below
+     the budget and keep their trees; a fan of triangles round one vertex gets big
      leaves round it instead of references without end.
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread; the subtrees below, at most 64, are independent tasks handed
      to options.scheduler, then joined in depth-first order. The cut depends only on the input,
      so the tree is the same for any scheduler, thread count or task order, and without one.
      max_leaf_size = 0 means no tree: every query tests every triangle, through the same API.
-     Memory, whatever the builder: 8 bytes a node (pbrt-v3's layout) and 4 a reference (a leaf
-     refers to its triangles by a run of references; a triangle crossing leaves is referred to by
-     each), then the triangle data the intersection tests read, copied at the end of the build so
-     that a test does not chase the caller's index buffer to three scattered vertices: a 16-byte
-     record per triangle (its corners' indices and the caller's triangle index) and the corners'
-     positions, 12 bytes each, each distinct position once (compared bit for bit, so a soup shares
-     its corners as an indexed mesh does). Records and positions lie in the order a depth-first
-     walk of the leaves first meets them, so a leaf's triangles and its neighbours' lie close
-     together. Skipped and zero-area triangles are not copied. kdrt_tree_stats.bytes counts it
-     all.
+     Memory, whatever the builder: 8 bytes a node (pbrt-v3's layout), then the triangles the
+     intersection tests read, copied at the end of the build so that a test does not chase the
+     caller's index buffer to three scattered vertices: each leaf's triangles in blocks of 8
+     (320 bytes: the 9 corner coordinates of 8 triangles and their indices; a triangle crossing
+     leaves is in each), the leaves' blocks in depth-first order, and 4 bytes a block for the
+     inspection API. A soup costs what its indexed mesh does; skipped and zero-area triangles
+     are not copied. kdrt_tree_stats.bytes counts it all: 74 to 79 bytes a triangle on the
+     meshes of bench/README.md.
      Inspection: kdrt_tree_node_count(), kdrt_tree_node() (a node's kind, split, children, box,
      depth and leaf references) and kdrt_tree_reference() (the caller's triangle a reference
      names) walk a built tree without its internals.
+
+   KERNELS
+     A tree's queries run one of two kernels, chosen when it is built and kept in the tree (no
+     global state): the AVX2 kernel where the header was compiled for x86-64 by GCC or Clang
+     without KDRT_NO_SIMD and the CPU has AVX2 (checked by the build with
+     __builtin_cpu_supports), else the scalar kernel; KDRT_BUILD_SCALAR_KERNEL asks for the scalar
+     one, kdrt_tree_stats.kernel says which runs. No compiler flag is needed: the AVX2 functions
+     carry the per-function target attribute. Both walk the same tree and read the same 8-wide
+     leaf blocks; the AVX2 kernel tests a block's 8 triangles at once, with the scalar test's
+     operations in the same order and without FMA, so the two return the same answers bit for
+     bit (the tests compare them on 1.4 million rays). Where the compiler contracts multiply-adds
+     into FMAs (-march=native with -ffp-contract=fast), each kernel keeps every guarantee above
+     but their last bits may differ. On MSVC and off x86-64 the scalar kernel runs.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -370,9 +389,10 @@ typedef struct kdrt_build_options {
     uint32_t flags;           /* kdrt_build_flags */
     kdrt_allocator allocator; /* all zero: KDRT_MALLOC / KDRT_FREE */
     /* KDRT_BUILDER_SAH's cost model (0: default): a split costs traversal_cost plus
-       intersection_cost times the expected triangle tests of the children, scaled by
-       1 - empty_bonus when one side is empty; a node is a leaf unless a split is cheaper than
-       intersection_cost times its triangle count. Only the ratio of the two costs matters. */
+       intersection_cost times the expected block tests of the children (a leaf of n triangles is
+       ceil(n / 8) blocks: THE TREE), scaled by 1 - empty_bonus when one side is empty; a node is
+       a leaf unless a split is cheaper than intersection_cost times its blocks. Only the ratio
+       of the two costs matters. */
     float sah_traversal_cost;    /* default KDRT_DEFAULT_SAH_TRAVERSAL_COST */
     float sah_intersection_cost; /* default KDRT_DEFAULT_SAH_INTERSECTION_COST */
     float sah_empty_bonus;       /* in [0, 1); default KDRT_DEFAULT_SAH_EMPTY_BONUS */
@@ -382,8 +402,8 @@ typedef struct kdrt_build_options {
 } kdrt_build_options;
 
 #define KDRT_DEFAULT_MAX_LEAF_SIZE 4
-/* The SAH costs a zero option stands for, chosen by measurement: K_T / K_I = 1.5, with an
-   empty bonus of 0.1. */
+/* The SAH costs a zero option stands for, chosen by measurement: K_T / K_I = 1.5 (K_I a block
+   test), with an empty bonus of 0.1 (bench/README.md, "Leaf blocks"). */
 #define KDRT_DEFAULT_SAH_TRAVERSAL_COST 30.0f
 #define KDRT_DEFAULT_SAH_INTERSECTION_COST 20.0f
 #define KDRT_DEFAULT_SAH_EMPTY_BONUS 0.1f
@@ -407,10 +427,12 @@ typedef struct kdrt_tree_stats {
     /* The tree's SAH cost (Wald & Havran 2006; pbrt-v3), in the units of the sah_*_cost options
        the build used (their defaults where 0), whatever the builder: the sum over inner nodes of
        sah_traversal_cost * area(node) / area(root), plus the sum over leaves of
-       sah_intersection_cost * triangles(leaf) * area(leaf) / area(root), with area the surface
+       sah_intersection_cost * blocks(leaf) * area(leaf) / area(root), with blocks(leaf) =
+       ceil(triangles(leaf) / 8) and area the surface
        area of the node's box (the tree's bounds cut by its ancestors' splits). The expected cost
        of a ray through the root box under the SAH's assumptions; the empty bonus is not part of
-       it. No tree (max_leaf_size 0): sah_intersection_cost * triangles. Empty tree: 0. */
+       it. No tree (max_leaf_size 0): sah_intersection_cost * ceil(triangles / 8). Empty tree:
+       0. */
     double sah_cost;
 } kdrt_tree_stats;
 
@@ -1478,6 +1500,9 @@ static kdrt__axis_cost kdrt__axis_setup(const kdrt__builder *b, int k, const flo
     return c;
 }
 
+/* What a leaf of n triangles costs to test, in block tests: its blocks of 8 (kdrt__pack_blocks). */
+static double kdrt__leaf_blocks(uint64_t n) { return (double)((n + KDRT__LANES - 1u) / KDRT__LANES); }
+
 /* Costs the plane pos with below, planars and above triangles on its sides, planars going
    either way, and keeps it in best if cheaper. Triangles the plane cuts are counted on both
    sides, so below + planars + above is what the children would hold: over the budget, the plane
@@ -1491,12 +1516,14 @@ static void kdrt__consider(const kdrt__axis_cost *c, kdrt__plane *best, float po
     p_below = (c->cap + ((double)pos - c->lo) * c->side) * c->inv_area;
     p_above = (c->cap + ((double)c->hi - pos) * c->side) * c->inv_area;
     scale = (below + planars == 0 || above == 0) ? c->isect_empty : c->isect;
-    cost = c->trav + scale * (p_below * (double)(below + planars) + p_above * (double)above);
+    cost = c->trav + scale * (p_below * kdrt__leaf_blocks((uint64_t)below + planars) +
+                              p_above * kdrt__leaf_blocks(above));
     if (cost < best->cost)
         best->axis = c->k, best->pos = pos, best->planar_below = 1, best->cost = cost;
     if (planars == 0) return; /* the same plane again: no better */
     scale = (below == 0 || above + planars == 0) ? c->isect_empty : c->isect;
-    cost = c->trav + scale * (p_below * (double)below + p_above * (double)(above + planars));
+    cost = c->trav + scale * (p_below * kdrt__leaf_blocks(below) +
+                              p_above * kdrt__leaf_blocks((uint64_t)above + planars));
     if (cost < best->cost)
         best->axis = c->k, best->pos = pos, best->planar_below = 0, best->cost = cost;
 }
@@ -1708,7 +1735,7 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
                                       const float lo[3], const float hi[3], uint32_t depth,
                                       uint32_t budget, kdrt__plane *best)
 {
-    double area = kdrt__half_area(lo, hi), leaf_cost = (double)b->sah_isect * (double)n;
+    double area = kdrt__half_area(lo, hi), leaf_cost = (double)b->sah_isect * kdrt__leaf_blocks(n);
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
     if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0)) return KDRT_SUCCESS;
     if (events) {
@@ -2101,7 +2128,7 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
     double root_area = kdrt__half_area(tree->bounds.min, tree->bounds.max), cost = 0.0;
     unsigned sp = 0;
     if (tree->stats.triangles == 0 || !(root_area > 0.0))
-        return intersection_cost * (double)tree->stats.triangle_refs; /* empty: 0 */
+        return intersection_cost * kdrt__leaf_blocks(tree->stats.triangle_refs); /* empty: 0 */
     at.node = 0;
     memcpy(at.lo, tree->bounds.min, sizeof at.lo);
     memcpy(at.hi, tree->bounds.max, sizeof at.hi);
@@ -2110,7 +2137,7 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
         double share = kdrt__half_area(at.lo, at.hi) / root_area;
         int axis = (int)kdrt__node_axis(node);
         if (kdrt__node_is_leaf(node)) {
-            cost += share * intersection_cost * (double)kdrt__node_count(node);
+            cost += share * intersection_cost * kdrt__leaf_blocks(kdrt__node_count(node));
             if (sp == 0) return cost;
             at = stack[--sp];
             continue;

@@ -1,6 +1,6 @@
-# Runs kdrt-construction with the default 11 triangles and checks the JSON it writes: it parses,
-# holds 11 triangles, and its first step is the root, splitting all of them on x.
-execute_process(COMMAND ${CONSTRUCTION} --builder ${BUILDER} -o ${OUT} ERROR_VARIABLE err RESULT_VARIABLE status)
+# Runs kdrt-construction with COUNT random triangles and checks the JSON it writes: it parses,
+# holds COUNT triangles, and its first step is the root, splitting all of them.
+execute_process(COMMAND ${CONSTRUCTION} --builder ${BUILDER} --count ${COUNT} -o ${OUT} ERROR_VARIABLE err RESULT_VARIABLE status)
 if(NOT status EQUAL 0)
   message(FATAL_ERROR "kdrt-construction failed (${status}): ${err}")
 endif()
@@ -13,7 +13,7 @@ string(JSON steps LENGTH "${json}" steps)
 string(JSON node GET "${json}" steps 0 node)
 string(JSON held LENGTH "${json}" steps 0 triangles)
 string(JSON sides LENGTH "${json}" steps 0 sides)
-if(NOT triangles EQUAL 11 OR steps LESS 1 OR NOT node EQUAL 0 OR NOT held EQUAL 11 OR NOT sides EQUAL 11)
-  message(FATAL_ERROR "expected 11 triangles and a root step over all of them: ${json}")
+if(NOT triangles EQUAL COUNT OR steps LESS 1 OR NOT node EQUAL 0 OR NOT held EQUAL COUNT OR NOT sides EQUAL COUNT)
+  message(FATAL_ERROR "expected ${COUNT} triangles and a root step over all of them: ${json}")
 endif()
 message(STATUS "${BUILDER}: ${steps} steps")

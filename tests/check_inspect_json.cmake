@@ -1,4 +1,4 @@
-# Runs kdrt-inspect --json on the octahedron (8 triangles) and checks that the output parses as
+# Runs kdrt-inspect --json on a 16 x 16 height field (512 triangles) and checks that the output parses as
 # JSON and that its counts add up: nodes = inner + leaves, the histograms sum to the leaves and
 # the leaf-size histogram to the references.
 execute_process(COMMAND ${INSPECT} ${MESH} --json --leaf-size 1 --builder sah
@@ -15,8 +15,8 @@ string(JSON inner GET "${json}" inner_nodes)
 string(JSON leaves GET "${json}" leaves)
 string(JSON references GET "${json}" references)
 string(JSON builder GET "${json}" builder)
-if(NOT triangles EQUAL 8 OR NOT builder STREQUAL "sah")
-  message(FATAL_ERROR "expected 8 triangles and the SAH builder: ${json}")
+if(NOT triangles EQUAL 512 OR NOT builder STREQUAL "sah")
+  message(FATAL_ERROR "expected 512 triangles and the SAH builder: ${json}")
 endif()
 math(EXPR sum "${inner} + ${leaves}")
 if(NOT sum EQUAL nodes OR nodes LESS 3)

@@ -66,6 +66,9 @@ kdrt_hit trace(const kdrt_tree *tree, const kdrt_ray &ray) {
 }
 
 // A soup assembled triangle by triangle.
+// A leaf's blocks of 8 triangles, which the SAH prices (kdrt.h's THE TREE).
+double blocks(uint32_t n) { return double((n + 7) / 8); }
+
 struct Soup {
     common::Mesh mesh;
     explicit Soup(const std::string &name) { mesh.name = name; }
@@ -134,7 +137,7 @@ public:
         n = model_.triangles = uint32_t(kept.size());
         if (leaf == 0 || n == 0) {
             model_.nodes = model_.leaves = 1, model_.refs = n;
-            model_.sah_cost = intersection_cost * n;  // one leaf holding everything
+            model_.sah_cost = intersection_cost * blocks(n);  // one leaf holding everything
             return;
         }
         // The root box: the kept triangles' boxes (what kdrt_tree_bounds() reports).
@@ -203,7 +206,7 @@ private:
         ++model_.leaves;
         model_.refs += n;
         model_.depth = std::max(model_.depth, depth);
-        model_.sah_cost += intersection_cost_ * n * box.area() / root_area_;
+        model_.sah_cost += intersection_cost_ * blocks(n) * box.area() / root_area_;
     }
     uint32_t leaf_, max_depth_;
     double traversal_cost_, intersection_cost_, root_area_ = 0;
@@ -932,7 +935,8 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
     // Three triangles: x in [0, 1] (z = 0), the plane x = 2 (y, z in [0, 1]), x in [3, 4] (z = 0).
     // Root box [0,4]x[0,1]x[0,1], area 2 (4 + 1 + 4) = 18. The median build splits at the middle
     // centroid, x = 2 (the planar triangle goes below), and with leaf size 2 stops there: two
-    // leaves of area 2 (2 + 1 + 2) = 10, holding 2 and 1 triangles. Cost: K_T + K_I (2 + 1) 10 / 18.
+    // leaves of area 2 (2 + 1 + 2) = 10, holding 2 and 1 triangles, a block each. Cost:
+    // K_T + K_I (1 + 1) 10 / 18, K_I pricing a test of a block of up to 8 triangles.
     Soup three("three");
     three.add(0, 0, 0, 1, 0, 0, 0, 1, 0);
     three.add(2, 0, 0, 2, 1, 0, 2, 0, 1);
@@ -940,47 +944,54 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
     {
         kdrt_tree_stats s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 0, 0));  // 0: defaults
         REQUIRE(s.nodes == 3);
-        CHECK(s.sah_cost == Approx(double(KDRT_DEFAULT_SAH_TRAVERSAL_COST) + double(KDRT_DEFAULT_SAH_INTERSECTION_COST) * 30 / 18).epsilon(1e-12));
+        CHECK(s.sah_cost == Approx(double(KDRT_DEFAULT_SAH_TRAVERSAL_COST) + double(KDRT_DEFAULT_SAH_INTERSECTION_COST) * 20 / 18).epsilon(1e-12));
         s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 15, 20));  // Wald & Havran's
-        CHECK(s.sah_cost == Approx(15.0 + 20.0 * 30 / 18).epsilon(1e-12));
+        CHECK(s.sah_cost == Approx(15.0 + 20.0 * 20 / 18).epsilon(1e-12));
         s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 2, 1, 80));  // pbrt-v3's
-        CHECK(s.sah_cost == Approx(1.0 + 80.0 * 30 / 18).epsilon(1e-12));
+        CHECK(s.sah_cost == Approx(1.0 + 80.0 * 20 / 18).epsilon(1e-12));
         s = stats_of(build_priced(three.mesh, KDRT_BUILDER_MEDIAN, 4, 1, 80));  // one leaf
         REQUIRE(s.nodes == 1);
-        CHECK(s.sah_cost == Approx(80.0 * 3).epsilon(1e-12));
+        CHECK(s.sah_cost == Approx(80.0 * 1).epsilon(1e-12));  // one block
     }
 
-    // Two triangles, x in [0, 1] and x in [9, 10], y in [0, 1], z = 0: root area 2 (10 x 1) = 20.
-    // A leaf costs 2 K_I. The SAH build with leaf size 1 splits at x = 1 or x = 9 (either leaves
-    // areas 2 and 18) when K_T + K_I (2 + 18) / 20 = K_T + K_I is cheaper than the leaf: with
+    // Eight copies of a triangle with x in [0, 1] and one with x in [9, 10], y in [0, 1], z = 0:
+    // root area 2 (10 x 1) = 20. A leaf of all nine is two blocks, 2 K_I. The SAH build with leaf
+    // size 1 splits at x = 1 or x = 9 (either leaves areas 2 and 18, a block each) when
+    // K_T + K_I (2 + 18) / 20 = K_T + K_I is cheaper than the leaf, that is when K_T < K_I: with
     // Wald & Havran's and pbrt-v3's costs, not with kdrt's defaults (K_T = 1.5 K_I).
+    Soup nine("nine");
+    for (int k = 0; k < 8; ++k) nine.add(0, 0, 0, 1, 0, 0, 0, 1, 0);
+    nine.add(9, 0, 0, 10, 0, 0, 9, 1, 0);
+    {
+        kdrt_tree_stats s = stats_of(build_priced(nine.mesh, KDRT_BUILDER_SAH, 1, 15, 20, 0.2f));
+        REQUIRE(s.nodes == 3);
+        CHECK(s.sah_cost == Approx(15.0 + 20.0).epsilon(1e-12));
+        s = stats_of(build_priced(nine.mesh, KDRT_BUILDER_SAH, 1, 0, 0));  // defaults: the leaf is cheaper
+        REQUIRE(s.nodes == 1);
+        CHECK(s.sah_cost == Approx(2.0 * KDRT_DEFAULT_SAH_INTERSECTION_COST).epsilon(1e-12));
+        s = stats_of(build_priced(nine.mesh, KDRT_BUILDER_SAH, 1, 1, 80, 0.5f));
+        REQUIRE(s.nodes == 3);
+        CHECK(s.sah_cost == Approx(1.0 + 80.0).epsilon(1e-12));
+        s = stats_of(build_priced(nine.mesh, KDRT_BUILDER_SAH, 0, 1, 80));
+        CHECK(s.sah_cost == Approx(160.0).epsilon(1e-12));
+    }
+    // Two triangles are one block: no split pays, whatever the costs.
     Soup two("two");
     two.add(0, 0, 0, 1, 0, 0, 0, 1, 0);
     two.add(9, 0, 0, 10, 0, 0, 9, 1, 0);
-    {
-        kdrt_tree_stats s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 15, 20, 0.2f));
-        REQUIRE(s.nodes == 3);
-        CHECK(s.sah_cost == Approx(15.0 + 20.0).epsilon(1e-12));
-        s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 0, 0));  // defaults: the leaf is cheaper
-        REQUIRE(s.nodes == 1);
-        CHECK(s.sah_cost == Approx(2.0 * KDRT_DEFAULT_SAH_INTERSECTION_COST).epsilon(1e-12));
-        s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 1, 80, 0.5f));
-        REQUIRE(s.nodes == 3);
-        CHECK(s.sah_cost == Approx(1.0 + 80.0).epsilon(1e-12));
-        s = stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 0, 1, 80));
-        CHECK(s.sah_cost == Approx(160.0).epsilon(1e-12));
-    }
+    CHECK(stats_of(build_priced(two.mesh, KDRT_BUILDER_SAH, 1, 1, 80, 0.5f)).nodes == 1);
 
-    // No tree (leaf size 0): K_I per triangle, whatever the builder; the empty tree costs nothing.
+    // No tree (leaf size 0): K_I per block of 8 triangles, whatever the builder; the empty tree
+    // costs nothing.
     const common::Mesh ball = kt::sphere(16, 24, 2.0);
     for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
         kdrt_tree_stats s = stats_of(build_priced(ball, builder, 0, 0, 0));
-        CHECK(s.sah_cost == Approx(20.0 * s.triangles).epsilon(1e-12));
+        CHECK(s.sah_cost == Approx(20.0 * ((s.triangles + 7) / 8)).epsilon(1e-12));
         s = stats_of(build_priced(ball, builder, 0, 3, 7));
-        CHECK(s.sah_cost == Approx(7.0 * s.triangles).epsilon(1e-12));
+        CHECK(s.sah_cost == Approx(7.0 * ((s.triangles + 7) / 8)).epsilon(1e-12));
         // A real tree costs less than testing everything, and more than one traversal step.
         s = stats_of(build_priced(ball, builder, 4, 0, 0));
-        CHECK(s.sah_cost < 20.0 * s.triangles);
+        CHECK(s.sah_cost < 20.0 * ((s.triangles + 7) / 8));
         CHECK(s.sah_cost > KDRT_DEFAULT_SAH_TRAVERSAL_COST);
     }
     Soup flat("one_degenerate");

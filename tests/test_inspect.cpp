@@ -58,7 +58,7 @@ void walk(const kdrt_tree *tree, const common::Mesh &mesh, uint32_t index, const
         w.leaves += 1;
         w.refs += info.triangle_count;
         w.max_leaf_depth = std::max(w.max_leaf_depth, depth);
-        w.sah_cost += share * KDRT_DEFAULT_SAH_INTERSECTION_COST * info.triangle_count;
+        w.sah_cost += share * KDRT_DEFAULT_SAH_INTERSECTION_COST * double((info.triangle_count + 7) / 8);
         for (uint32_t k = 0; k < info.triangle_count; ++k) {
             uint32_t tri = KDRT_INVALID_ID;
             REQUIRE(kdrt_tree_reference(tree, info.first_reference + k, &tri) == KDRT_SUCCESS);
