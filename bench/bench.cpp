@@ -149,6 +149,8 @@ std::string usage() {
            "                      (default: kdrt.h's, 30:20:0.1; pbrt-v3's are 1:80:0.5)\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
+           "                      | shadow (from the primary hits to a point light above the\n"
+           "                      scene: kdrt_occluded, and Embree's rtcOccluded1)\n"
            "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"
            "                      brute-force reference (default 20000, seeded; 0: every ray)\n"
            "  --subdivide K       K levels of 4-to-1 subdivision of every mesh first\n"
@@ -295,8 +297,9 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             if (v == "primary") out.rays = RayKind::primary;
             else if (v == "diffuse") out.rays = RayKind::diffuse;
             else if (v == "random") out.rays = RayKind::random;
+            else if (v == "shadow") out.rays = RayKind::shadow;
             else {
-                error = "--rays wants primary, diffuse or random, got '" + v + "'";
+                error = "--rays wants primary, diffuse, random or shadow, got '" + v + "'";
                 return false;
             }
         } else if (arg == "--compare") {
@@ -405,6 +408,24 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
         }
     if (kind == RayKind::primary) return rays;
 
+    if (kind == RayKind::shadow) {
+        // From every primary hit towards the light, leaving the surface through kdrt_spawn_ray(),
+        // then aimed from the origin it chose so that the light is at t = 1.
+        std::vector<kdrt_ray> shadow;
+        for (const kdrt_ray &r : rays) {
+            kdrt_hit h;
+            float point[3], dir[3];
+            kdrt_ray s;
+            if (!kdrt_intersect(tree, &r, &h) || !kdrt_hit_surface(tree, &h, point, nullptr)) continue;
+            for (int a = 0; a < 3; ++a) dir[a] = kShadowLight[a] - point[a];
+            if (!kdrt_spawn_ray(tree, &h, dir, &s)) continue;
+            for (int a = 0; a < 3; ++a) s.dir[a] = kShadowLight[a] - s.org[a];
+            s.tmin = 0, s.tmax = 1;
+            shadow.push_back(s);
+        }
+        return shadow;
+    }
+
     // Diffuse: a cosine-distributed bounce from every primary hit, on the side the ray came from,
     // leaving the surface through kdrt_spawn_ray() (no epsilon: the offset scales with the point).
     std::vector<kdrt_ray> bounces;
@@ -445,6 +466,28 @@ size_t count_mismatches(const oracle::Oracle &oracle, const std::vector<oracle::
     oracle::Agreement tally;
     for (size_t k = 0; k < sample.size(); ++k) oracle::check_hit(oracle, refs[k], rays[sample[k]], hits[sample[k]], tally);
     return tally.wrong;
+}
+
+size_t count_occlusion_mismatches(const oracle::Oracle &oracle, const std::vector<oracle::Reference> &refs,
+                                  const std::vector<size_t> &sample, const std::vector<kdrt_ray> &rays,
+                                  const std::vector<unsigned char> &occluded, uint32_t triangles) {
+    size_t wrong = 0;
+    for (size_t k = 0; k < sample.size(); ++k) {
+        const kdrt_ray &ray = rays[sample[k]];
+        if (refs[k].sure_hit) {
+            wrong += !occluded[sample[k]];
+        } else if (occluded[sample[k]]) {
+            bool possible = false;
+            // possible_t widens the range by its tolerance; a shadow ray leaves a surface, which
+            // it meets again at a hair below t = 0, and that is not a hit.
+            for (uint32_t t = 0; t < triangles && !possible; ++t) {
+                const double at = oracle.possible_t(ray, t);
+                possible = at >= double(ray.tmin) && at <= double(ray.tmax);
+            }
+            wrong += !possible;
+        }
+    }
+    return wrong;
 }
 
 std::string csv_header() {

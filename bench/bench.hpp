@@ -13,7 +13,7 @@
 
 namespace kb {
 
-enum class RayKind { primary, diffuse, random };
+enum class RayKind { primary, diffuse, random, shadow };
 
 // The SAH builder's cost constants (kdrt_build_options.sah_*): traversal K_T, intersection K_I,
 // empty bonus EB.
@@ -82,10 +82,19 @@ struct Scene {
 };
 Scene make_scene(const common::Mesh &mesh, const std::string &name);
 
-// One ray per pixel centre (row-major), or the bounces or random rays built from them.
-// tree is used for the diffuse rays' primary hits.
+// One ray per pixel centre (row-major), or the bounces or random rays built from them, or shadow
+// rays: from every primary hit to the point light kShadowLight, which lies above and in front of
+// the scene, over t in [0, 1] (the light at t = 1). tree is used for the primary hits.
 std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width, unsigned height,
                                 const kdrt_tree *tree, uint32_t seed);
+
+constexpr float kShadowLight[3] = {1.5f, 3.0f, 2.5f};
+
+// Shadow rays (any hit) of the sample whose answer the reference contradicts: not occluded where
+// a triangle is surely hit in the range, or occluded where no triangle can be hit at all.
+size_t count_occlusion_mismatches(const oracle::Oracle &oracle, const std::vector<oracle::Reference> &refs,
+                                  const std::vector<size_t> &sample, const std::vector<kdrt_ray> &rays,
+                                  const std::vector<unsigned char> &occluded, uint32_t triangles);
 
 // Sorted, distinct, seeded choice of `count` indices out of `total` (all of them if count is 0
 // or at least total).

@@ -12,7 +12,7 @@ namespace kb {
 
 bool embree_available() { return false; }
 
-bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, PeerRun &, std::string &error) {
+bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, bool, PeerRun &, std::string &error) {
     error = "this kdrt-bench was built without Embree (install libembree-dev and configure again)";
     return false;
 }
@@ -21,8 +21,8 @@ bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, P
 
 bool embree_available() { return true; }
 
-bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
-                std::string &error) {
+bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
+                PeerRun &out, std::string &error) {
     RTCDevice device = rtcNewDevice("threads=1");  // its build on one thread, like kdrt's
     if (!device) {
         error = "rtcNewDevice failed";
@@ -60,6 +60,23 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
         return false;
     }
 
+    if (occlusion) {
+        out.occluded.assign(rays.size(), 0);
+        out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
+            const kdrt_ray &r = rays[i];
+            RTCIntersectContext context;
+            rtcInitIntersectContext(&context);
+            RTCRay ray;
+            ray.org_x = r.org[0], ray.org_y = r.org[1], ray.org_z = r.org[2];
+            ray.dir_x = r.dir[0], ray.dir_y = r.dir[1], ray.dir_z = r.dir[2];
+            ray.tnear = r.tmin, ray.tfar = r.tmax, ray.time = 0, ray.mask = ~0u, ray.id = 0, ray.flags = 0;
+            rtcOccluded1(scene, &context, &ray);
+            out.occluded[i] = ray.tfar < 0;  // rtcOccluded1 sets tfar to -inf on a hit
+        });
+        rtcReleaseScene(scene);
+        rtcReleaseDevice(device);
+        return true;
+    }
     out.hits.assign(rays.size(), kdrt_hit{});
     out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
         const kdrt_ray &r = rays[i];

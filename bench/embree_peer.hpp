@@ -13,12 +13,13 @@ namespace kb {
 struct PeerRun {
     double build_ms = 0, trace_ms = 0;
     std::vector<kdrt_hit> hits;  // in kdrt's terms: triangle, t, u, v (KDRT_INVALID_ID on a miss)
+    std::vector<unsigned char> occluded;  // with occlusion: 1 where rtcOccluded1 found a hit
 };
 
 bool embree_available();
-// Builds at RTC_BUILD_QUALITY_MEDIUM on one thread, then traces with rtcIntersect1 on `threads`
-// threads. false with a message if Embree fails.
-bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, PeerRun &out,
-                std::string &error);
+// Builds at RTC_BUILD_QUALITY_MEDIUM on one thread, then traces with rtcIntersect1 (or, with
+// occlusion, rtcOccluded1) on `threads` threads. false with a message if Embree fails.
+bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
+                PeerRun &out, std::string &error);
 
 }  // namespace kb

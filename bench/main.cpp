@@ -375,6 +375,8 @@ int run(int argc, char **argv) {
         row.rays = rays.size();
         row.reference_rays = sample.size();
         std::vector<kdrt_hit> hits(rays.size());
+        const bool shadow = opt.rays == kb::RayKind::shadow;  // any hit: kdrt_occluded
+        std::vector<unsigned char> occluded(rays.size());
         for (const kb::BuildVariant &variant : variants)
         for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
             for (kdrt_intersector intersector : intersectors)
@@ -392,7 +394,11 @@ int run(int argc, char **argv) {
                         ++failures;
                         continue;
                     }
-                    row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                    if (shadow) {
+                        row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
+                    } else {
+                        row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                    }
                     kdrt_tree_get_stats(tree, &row.stats);
                     kdrt_tree_free(tree);
                     row.builder = variant.builder;
@@ -401,7 +407,8 @@ int run(int argc, char **argv) {
                     row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
-                    row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, hits);
+                    row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, row.triangles)
+                                            : kb::count_mismatches(oracle, refs, sample, rays, hits);
                     if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
                     progress.step(in.label + " " + variant.builder + (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
                                   " leaf " + std::to_string(leaf) + " " + row.intersector);
@@ -409,7 +416,7 @@ int run(int argc, char **argv) {
         if (opt.compare_embree)
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
                 kb::PeerRun peer;
-                if (!kb::embree_run(scene.geometry, rays, opt.threads, peer, error)) {
+                if (!kb::embree_run(scene.geometry, rays, opt.threads, shadow, peer, error)) {
                     progress.note("kdrt-bench: " + in.label + ": Embree: " + error);
                     ++failures;
                     break;
@@ -422,7 +429,8 @@ int run(int argc, char **argv) {
                 row.has_tree_stats = false;
                 row.build_ms = peer.build_ms;
                 row.trace_ms = peer.trace_ms;
-                row.mismatches = kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
+                row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, peer.occluded, row.triangles)
+                                        : kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
                 if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
                 progress.step(in.label + " embree");
             }

@@ -125,16 +125,16 @@ int run(int argc, char **argv)
         struct Class {
             const char *name;
             std::vector<kdrt_ray> rays;
-        } classes[4] = {{"primary, hitting the mesh, pixel order", {}},
+        } classes[5] = {{"primary, hitting the mesh, pixel order", {}},
                         {"the same, shuffled", {}},
+                        {"primary, past the mesh to the wall", {}},
                         {"diffuse, leaving the mesh", {}},
                         {"diffuse, hitting the mesh again", {}}};
-        for (const kdrt_ray &ray : primary)
-            if (on_mesh(ray)) classes[0].rays.push_back(ray);
+        for (const kdrt_ray &ray : primary) classes[on_mesh(ray) ? 0 : 2].rays.push_back(ray);
         classes[1].rays = classes[0].rays;
         common::Rng rng(7);
         for (size_t i = classes[1].rays.size(); i > 1; --i) std::swap(classes[1].rays[i - 1], classes[1].rays[rng.below(uint32_t(i))]);
-        for (const kdrt_ray &ray : diffuse) classes[on_mesh(ray) ? 3 : 2].rays.push_back(ray);
+        for (const kdrt_ray &ray : diffuse) classes[on_mesh(ray) ? 4 : 3].rays.push_back(ray);
         for (const Class &c : classes) {
             if (c.rays.empty()) continue;
             kdrt_traversal_stats work;

@@ -463,6 +463,48 @@ TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "
     CHECK(bounces.size() == rays.size());
     const std::vector<kdrt_ray> random = kb::make_rays(scene, kb::RayKind::random, 33, 33, tree.get(), 1);
     CHECK(random.size() == rays.size());
+
+    // Shadow rays: one per primary hit, ending at the light (t = 1), which the ball hides from
+    // the wall behind it but not from its own lit side.
+    const std::vector<kdrt_ray> shadow = kb::make_rays(scene, kb::RayKind::shadow, 33, 33, tree.get(), 1);
+    CHECK(shadow.size() == rays.size());
+    size_t blocked = 0;
+    for (const kdrt_ray &s : shadow) {
+        for (int a = 0; a < 3; ++a) CHECK(s.org[a] + s.dir[a] == Approx(kb::kShadowLight[a]).epsilon(1e-5));
+        CHECK(s.tmax == 1.0f);
+        kdrt_hit h;
+        const int occluded = kdrt_occluded(tree.get(), &s);
+        CHECK(occluded == kdrt_intersect(tree.get(), &s, &h));
+        blocked += size_t(occluded);
+    }
+    CHECK(blocked > 0);
+    CHECK(blocked < shadow.size());
+}
+
+TEST_CASE("Mismatches of shadow rays count occlusion the reference contradicts", "[bench]") {
+    const common::Mesh ball = kt::sphere(16, 32, 1.0);
+    const kb::Scene scene = kb::make_scene(ball, "BALL");
+    kt::TreePtr tree = kt::build(scene.geometry, 4, KDRT_BUILDER_MEDIAN);
+    const std::vector<kdrt_ray> rays = kb::make_rays(scene, kb::RayKind::shadow, 40, 40, tree.get(), 1);
+    std::vector<unsigned char> occluded(rays.size());
+    for (size_t i = 0; i < rays.size(); ++i) occluded[i] = (unsigned char)kdrt_occluded(tree.get(), &rays[i]);
+    const oracle::Oracle oracle(scene.geometry);
+    const std::vector<size_t> sample = kb::reference_sample(rays.size(), 0, 1);
+    const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
+    const uint32_t triangles = scene.geometry.triangle_count();
+    REQUIRE(kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, triangles) == 0);
+    // Every answer turned round: each surely blocked ray now unblocked, each clear one blocked.
+    std::vector<unsigned char> flipped(occluded.size());
+    size_t sure = 0, clear = 0;
+    for (size_t i = 0; i < occluded.size(); ++i) {
+        flipped[i] = (unsigned char)!occluded[i];
+        sure += refs[i].sure_hit;
+        clear += !occluded[i];
+    }
+    REQUIRE(sure > 0);
+    REQUIRE(clear > 0);
+    INFO("sure " << sure << " clear " << clear);
+    CHECK(kb::count_occlusion_mismatches(oracle, refs, sample, rays, flipped, triangles) >= sure + clear * 9 / 10);
 }
 
 TEST_CASE("the reference sample is seeded, distinct and sorted", "[bench]") {
