@@ -160,8 +160,7 @@
      tests, so the SAH stops where one block test is cheaper than more splits: on the meshes of
      bench/README.md leaves of about 20 triangles, half the references and a fourteenth of the
      nodes of triangle pricing, 2.8 times faster builds and 30 to 50% faster rays on both
-     kernels. It is
-     the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
+     kernels. It is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
      Reference budget: a triangle a plane cuts is referred to on both sides, and some inputs (a
      fan of triangles round one vertex, crossing slivers) would multiply references without
      end. The root's budget is KDRT_SAH_REFERENCE_BUDGET (8) references a triangle; a split is
@@ -169,8 +168,8 @@
      proportion to what each holds. So every level of the tree holds at most 8 n references
      (n: the triangles in the tree), which bounds the build whatever the input: the tree's
      references at most 8 n (in blocks of 8, 40 bytes a reference, and a leaf's last block
-     partly filled), its nodes at most 12 n a level (an inner
-     node holds 2 references or more); the build's reference arrays at most 8 n at any moment
+     partly filled), its nodes at most 12 n a level (an inner node holds 2 references or
+     more); the build's reference arrays at most 8 n at any moment
      (28 bytes each: above the exact region each node's array is freed once its children have
      theirs), and sorted events for at most one budget's worth at a time (48 bytes a
      reference); O(n) work a level, sorts included (long ones are radix sorts), over at most
@@ -428,11 +427,10 @@ typedef struct kdrt_tree_stats {
        the build used (their defaults where 0), whatever the builder: the sum over inner nodes of
        sah_traversal_cost * area(node) / area(root), plus the sum over leaves of
        sah_intersection_cost * blocks(leaf) * area(leaf) / area(root), with blocks(leaf) =
-       ceil(triangles(leaf) / 8) and area the surface
-       area of the node's box (the tree's bounds cut by its ancestors' splits). The expected cost
-       of a ray through the root box under the SAH's assumptions; the empty bonus is not part of
-       it. No tree (max_leaf_size 0): sah_intersection_cost * ceil(triangles / 8). Empty tree:
-       0. */
+       ceil(triangles(leaf) / 8) and area the surface area of the node's box (the tree's bounds
+       cut by its ancestors' splits). The expected cost of a ray through the root box under the
+       SAH's assumptions; the empty bonus is not part of it. No tree (max_leaf_size 0):
+       sah_intersection_cost * ceil(triangles / 8). Empty tree: 0. */
     double sah_cost;
 } kdrt_tree_stats;
 
