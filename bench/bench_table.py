@@ -2,11 +2,12 @@
 """Prints bench/README.md's table of kdrt's SAH builder against Embree and the median builder, from
 the CSVs kdrt-bench writes with --builder median,sah --compare embree.
 
-usage: bench/bench_table.py --primary CSV [CSV ...] --diffuse CSV [CSV ...]
+usage: bench/bench_table.py --primary CSV [CSV ...] --diffuse CSV [CSV ...] [--shadow CSV ...]
                             [--leaf-size N] [--sah-costs KT:KI:EB]
 
 --primary takes the CSVs of primary-ray runs (kdrt-bench without --rays), --diffuse those of
---rays diffuse runs; a mesh may appear in either or both. Per mesh, the SAH and median rows of one
+--rays diffuse runs, --shadow (optional, a column of its own) those of --rays shadow runs; a mesh
+may appear in any of them. Per mesh, the SAH and median rows of one
 max leaf size (default 4) and the Embree rows are compared. Repetitions (kdrt-bench --repeat)
 give several rows for a mesh and builder; each figure is their median, as bench/plot_bench.py
 takes it. Build times are the median over the rows of both kinds of run (the same trees are
@@ -16,7 +17,8 @@ built in each). Columns:
   Bytes / triangle     the SAH tree's TreeBytes over Triangles
   SAH cost             the SAH tree's SahCost, priced with its own constants (SahCosts)
   Build ms             SAH / Embree (SAH over Embree)
-  Primary, Diffuse     MRays/s SAH / Embree (SAH over Embree), one thread
+  Primary, Diffuse     MRays/s SAH / Embree (SAH over Embree), one thread; Shadow the same for
+                       kdrt_occluded against rtcOccluded1
   SAH over median      the SAH tree's MRays/s over the median tree's, primary / diffuse
   Mismatches           summed over every row used (SAH, median and Embree, both kinds)
 """
@@ -29,6 +31,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from plot_bench import median_by, read_rows  # noqa: E402  (the same reading and repetition rule)
 
 TOOL = "bench_table"
+
+
+KINDS = ("primary", "diffuse", "shadow")  # kdrt-bench --rays, as the CSVs are given
 
 
 def load(paths, kind):
@@ -103,7 +108,7 @@ def summarise(rows, leaf_size, sah_costs):
             "bytes_per_triangle": sah_bytes / triangles if sah_bytes is not None and triangles else None,
             "sah_cost": sah_cost.get((m, "sah")),
             "build_ms": {b: build.get((m, b)) for b in ("sah", "median", "embree")},
-            "mrays": {(k, b): mrays.get((m, k, b)) for k in ("primary", "diffuse") for b in ("sah", "median", "embree")},
+            "mrays": {(k, b): mrays.get((m, k, b)) for k in KINDS for b in ("sah", "median", "embree")},
             "mismatches": sum(int(r.get("Mismatches") or 0) for r in mine),
             "rows": len(mine),
         })
@@ -129,10 +134,12 @@ def fmt_pair(a, b, fmt, ratio_digits):
 
 def markdown(summary):
     mrays_fmt = lambda v: f"{v:.2f}"  # noqa: E731
+    shadow = any(s["mrays"][("shadow", b)] is not None for s in summary for b in ("sah", "embree"))
     lines = ["| Mesh | Triangles | Bytes / triangle | SAH cost | Build ms SAH / Embree | "
-             "Primary MRays/s SAH / Embree | Diffuse MRays/s SAH / Embree | SAH over median, primary / diffuse | "
+             "Primary MRays/s SAH / Embree | Diffuse MRays/s SAH / Embree | " +
+             ("Shadow MRays/s SAH / Embree | " if shadow else "") + "SAH over median, primary / diffuse | "
              "Mismatches |",
-             "|---|---:|---:|---:|---|---|---|---|---:|"]
+             "|---|---:|---:|---:|---|---|---|" + ("---|" if shadow else "") + "---|---:|"]
     for s in summary:
         over = [ratio(s["mrays"][(k, "sah")], s["mrays"][(k, "median")]) for k in ("primary", "diffuse")]
         over_text = " / ".join("-" if v is None else f"{v:.1f}x" for v in over)
@@ -144,6 +151,7 @@ def markdown(summary):
             fmt_pair(s["build_ms"]["sah"], s["build_ms"]["embree"], fmt_ms, 1),
             fmt_pair(s["mrays"][("primary", "sah")], s["mrays"][("primary", "embree")], mrays_fmt, 2),
             fmt_pair(s["mrays"][("diffuse", "sah")], s["mrays"][("diffuse", "embree")], mrays_fmt, 2),
+        ] + ([fmt_pair(s["mrays"][("shadow", "sah")], s["mrays"][("shadow", "embree")], mrays_fmt, 2)] if shadow else []) + [
             over_text,
             str(s["mismatches"]),
         ]) + " |")
@@ -154,6 +162,7 @@ def add_input_arguments(parser):
     """The options that say which CSVs and rows to read (bench/plot_speed.py takes them too)."""
     parser.add_argument("--primary", nargs="+", required=True, metavar="CSV", help="kdrt-bench CSVs of primary rays")
     parser.add_argument("--diffuse", nargs="+", default=[], metavar="CSV", help="kdrt-bench CSVs of --rays diffuse")
+    parser.add_argument("--shadow", nargs="+", default=[], metavar="CSV", help="kdrt-bench CSVs of --rays shadow")
     parser.add_argument("--leaf-size", type=int, default=4, help="max leaf size of the kd-tree rows (default 4)")
     parser.add_argument("--sah-costs", metavar="KT:KI:EB",
                         help="the SAH rows' SahCosts, when the CSVs hold several (as kdrt-bench writes it)")
@@ -169,7 +178,7 @@ def parse_args(argv=None):
 
 def load_summary(args):
     """The table's figures from the parsed arguments (bench/plot_speed.py reads them too)."""
-    rows = load(args.primary, "primary") + load(args.diffuse, "diffuse")
+    rows = load(args.primary, "primary") + load(args.diffuse, "diffuse") + load(args.shadow, "shadow")
     if not rows:
         sys.exit(f"{TOOL}: the CSVs hold no rows")
     costs = choose_sah_costs(rows, args.sah_costs)

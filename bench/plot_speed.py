@@ -3,7 +3,7 @@
 and on diffuse rays, from the CSVs bench/bench_table.py reads (kdrt-bench --builder median,sah
 --compare embree, a primary and a diffuse run).
 
-usage: bench/plot_speed.py --primary CSV [CSV ...] --diffuse CSV [CSV ...] [-o PREFIX]
+usage: bench/plot_speed.py --primary CSV [CSV ...] --diffuse CSV [CSV ...] [--shadow CSV ...] [-o PREFIX]
                            [--leaf-size N] [--sah-costs KT:KI:EB] [--min-triangles N]
 
 Writes PREFIX.png and PREFIX.svg (PREFIX defaults to the first primary CSV's path without .csv,
@@ -45,8 +45,10 @@ def main():
     first = args.primary[0]
     prefix = args.output or (first[:-4] if first.endswith(".csv") else first) + "-mrays"
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharex=True, sharey=True)
-    for ax, kind in zip(axes, ("primary", "diffuse")):
+    kinds = [k for k in ("primary", "diffuse", "shadow") if getattr(args, k)]
+    fig, axes = plt.subplots(1, len(kinds), figsize=(6 * len(kinds), 5), sharex=True, sharey=True, squeeze=False)
+    axes = axes[0]
+    for ax, kind in zip(axes, kinds):
         for builder, label, marker, style in CURVES:
             pts = [(s["triangles"], s["mrays"][(kind, builder)], s["mesh"]) for s in shown
                    if s["mrays"][(kind, builder)] is not None]
