@@ -21,6 +21,15 @@ bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, b
 
 bool embree_available() { return true; }
 
+// kdrt's ray in Embree's terms.
+static RTCRay rtc_ray(const kdrt_ray &r) {
+    RTCRay ray;
+    ray.org_x = r.org[0], ray.org_y = r.org[1], ray.org_z = r.org[2];
+    ray.dir_x = r.dir[0], ray.dir_y = r.dir[1], ray.dir_z = r.dir[2];
+    ray.tnear = r.tmin, ray.tfar = r.tmax, ray.time = 0, ray.mask = ~0u, ray.id = 0, ray.flags = 0;
+    return ray;
+}
+
 bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
                 PeerRun &out, std::string &error) {
     RTCDevice device = rtcNewDevice("threads=1");  // its build on one thread, like kdrt's
@@ -63,13 +72,9 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
     if (occlusion) {
         out.occluded.assign(rays.size(), 0);
         out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
-            const kdrt_ray &r = rays[i];
             RTCIntersectContext context;
             rtcInitIntersectContext(&context);
-            RTCRay ray;
-            ray.org_x = r.org[0], ray.org_y = r.org[1], ray.org_z = r.org[2];
-            ray.dir_x = r.dir[0], ray.dir_y = r.dir[1], ray.dir_z = r.dir[2];
-            ray.tnear = r.tmin, ray.tfar = r.tmax, ray.time = 0, ray.mask = ~0u, ray.id = 0, ray.flags = 0;
+            RTCRay ray = rtc_ray(rays[i]);
             rtcOccluded1(scene, &context, &ray);
             out.occluded[i] = ray.tfar < 0;  // rtcOccluded1 sets tfar to -inf on a hit
         });
@@ -79,13 +84,10 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
     }
     out.hits.assign(rays.size(), kdrt_hit{});
     out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
-        const kdrt_ray &r = rays[i];
         RTCIntersectContext context;
         rtcInitIntersectContext(&context);
         RTCRayHit rh;
-        rh.ray.org_x = r.org[0], rh.ray.org_y = r.org[1], rh.ray.org_z = r.org[2];
-        rh.ray.dir_x = r.dir[0], rh.ray.dir_y = r.dir[1], rh.ray.dir_z = r.dir[2];
-        rh.ray.tnear = r.tmin, rh.ray.tfar = r.tmax, rh.ray.time = 0, rh.ray.mask = ~0u, rh.ray.id = 0, rh.ray.flags = 0;
+        rh.ray = rtc_ray(rays[i]);
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene, &context, &rh);
         kdrt_hit &h = out.hits[i];
