@@ -2,6 +2,7 @@
 # checked one by one, which is renamed over OUT only when the run ends with a row written and
 # every write checked (bench/README.md). BENCH, MESH (a good mesh) and DIR (a scratch folder).
 include("${CMAKE_CURRENT_LIST_DIR}/bench_csv_rows.cmake")
+include("${CMAKE_CURRENT_LIST_DIR}/expect_failure.cmake")
 set(out "${DIR}/bench_output.csv")
 set(partial "${out}.partial")
 set(old "the old results\n")
@@ -9,14 +10,7 @@ set(old "the old results\n")
 # Runs kdrt-bench with ARGN and -o OUT; it must fail, saying EXPECT on stderr, and leave OUT as
 # it was.
 function(bench_fails expect)
-  execute_process(COMMAND ${ARGN} -o "${out}" OUTPUT_QUIET ERROR_VARIABLE err RESULT_VARIABLE result)
-  message(STATUS "exit status ${result}, standard error: ${err}")
-  if(result EQUAL 0)
-    message(FATAL_ERROR "it exited 0")
-  endif()
-  if(NOT err MATCHES "${expect}")
-    message(FATAL_ERROR "standard error does not match '${expect}'")
-  endif()
+  expect_failure("${expect}" /dev/null ${ARGN} -o "${out}")
   file(READ "${out}" text)
   if(NOT text STREQUAL old)
     message(FATAL_ERROR "${out} was changed")

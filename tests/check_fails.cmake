@@ -5,6 +5,7 @@
 #                  write that would grow a file past that fails (EFBIG), as on a full disk
 #   KEEP=FILE      FILE holds "the old file" before the run and must hold it after, with no
 #                  temporary FILE.tmp-* left beside it
+include("${CMAKE_CURRENT_LIST_DIR}/expect_failure.cmake")
 string(REPLACE "|" ";" command "${COMMAND}")
 if(DEFINED FILE_LIMIT)
   set(command bash -c "ulimit -f ${FILE_LIMIT} && trap '' XFSZ && exec \"$@\"" bash ${command})
@@ -19,14 +20,7 @@ endif()
 if(NOT DEFINED STDOUT)
   set(STDOUT /dev/null)
 endif()
-execute_process(COMMAND ${command} OUTPUT_FILE "${STDOUT}" ERROR_VARIABLE err RESULT_VARIABLE result)
-message(STATUS "exit status ${result}, standard error: ${err}")
-if(result EQUAL 0)
-  message(FATAL_ERROR "it exited 0")
-endif()
-if(NOT err MATCHES "${EXPECT}")
-  message(FATAL_ERROR "standard error does not match '${EXPECT}'")
-endif()
+expect_failure("${EXPECT}" "${STDOUT}" ${command})
 if(DEFINED KEEP)
   file(READ "${KEEP}" text)
   if(NOT text STREQUAL "the old file")
