@@ -202,7 +202,9 @@
      carry the per-function target attribute. Both walk the same tree and read the same 8-wide
      leaf blocks; the AVX2 kernel tests a block's 8 triangles at once, with the scalar test's
      operations in the same order and without FMA, so the two return the same answers bit for
-     bit (the tests compare them on 1.4 million rays). Where the compiler contracts multiply-adds
+     bit (the tests compare them on 1.4 million rays). Before its exact watertight test, the
+     AVX2 kernel leaves a block early when float products already prove that the ray misses
+     all 8 triangles: a filter that changes no answer. Where the compiler contracts multiply-adds
      into FMAs (-march=native with -ffp-contract=fast), each kernel keeps every guarantee above
      but their last bits may differ. On MSVC and off x86-64 the scalar kernel runs.
 
@@ -2605,6 +2607,26 @@ KDRT__TARGET_AVX2 static inline void kdrt__widen(__m256 x, __m256d out[2])
     out[1] = _mm256_cvtps_pd(_mm256_extractf128_ps(x, 1));
 }
 
+/* A filter in float before the exact edge functions: 1 when every lane surely has edge functions
+   of both signs, so that the exact test would reject every lane. An edge function a * b - c * d
+   is negative where a * b < c * d; rounding is monotone, so where float's products compare
+   a * b < c * d (or >), the exact ones do too. Equal float products (or a NaN from an overflow)
+   say nothing, and the exact test decides. The products are compared, not subtracted: a
+   compiler may fuse a * b - (c * d) into an FMA (-mfma -ffp-contract=fast), whose sign can be
+   wrong. So the filter changes no answer, only how soon most blocks are left. */
+KDRT__TARGET_AVX2 static inline int kdrt__block_surely_missed_avx2(const __m256 x[3], const __m256 y[3])
+{
+    __m256 neg = _mm256_setzero_ps(), pos = _mm256_setzero_ps();
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const int i = (k + 2) % 3, j = (k + 1) % 3; /* edge j-i, weight of corner k, as below */
+        const __m256 a = _mm256_mul_ps(x[i], y[j]), b = _mm256_mul_ps(y[i], x[j]);
+        neg = _mm256_or_ps(neg, _mm256_cmp_ps(a, b, _CMP_LT_OQ));
+        pos = _mm256_or_ps(pos, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
+    }
+    return _mm256_movemask_ps(_mm256_and_ps(neg, pos)) == 0xFF;
+}
+
 /* kdrt__intersect_watertight on a block's 8 lanes. */
 KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *block,
                                                          const kdrt__ray_setup *s, kdrt_hit *best)
@@ -2619,14 +2641,17 @@ KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *bloc
     float t[KDRT__LANES], u[KDRT__LANES], v[KDRT__LANES];
     unsigned mask = 0;
     int k, h;
+    __m256 fx[3], fy[3], fz[3];
     for (k = 0; k < 3; ++k) {
         const __m256 dx = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kx]), ox);
         const __m256 dy = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + ky]), oy);
         const __m256 dz = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kz]), oz);
-        kdrt__widen(_mm256_sub_ps(dx, _mm256_mul_ps(sx, dz)), x[k]);
-        kdrt__widen(_mm256_sub_ps(dy, _mm256_mul_ps(sy, dz)), y[k]);
-        kdrt__widen(_mm256_mul_ps(sz, dz), z[k]);
+        fx[k] = _mm256_sub_ps(dx, _mm256_mul_ps(sx, dz));
+        fy[k] = _mm256_sub_ps(dy, _mm256_mul_ps(sy, dz));
+        fz[k] = _mm256_mul_ps(sz, dz);
     }
+    if (kdrt__block_surely_missed_avx2(fx, fy)) return 0;
+    for (k = 0; k < 3; ++k) kdrt__widen(fx[k], x[k]), kdrt__widen(fy[k], y[k]), kdrt__widen(fz[k], z[k]);
     {
         __m256d e0[2], e1[2], e2[2], det[2];
         for (h = 0; h < 2; ++h) {
