@@ -72,9 +72,20 @@ std::string sah_costs_label(const SahCosts &costs) {
     return buf;
 }
 
+const char *quality_name(kdrt_build_quality quality) {
+    switch (quality) {
+    case KDRT_BUILD_QUALITY_FAST: return "fast";
+    case KDRT_BUILD_QUALITY_MEDIUM: return "medium";
+    case KDRT_BUILD_QUALITY_HIGH: return "high";
+    default: return "default";
+    }
+}
+
 std::vector<BuildVariant> build_variants(const Options &opt) {
     std::vector<BuildVariant> variants;
     const std::vector<SahCosts> triples = opt.sah_costs.empty() ? std::vector<SahCosts>(1) : opt.sah_costs;
+    const std::vector<kdrt_build_quality> qualities =
+        opt.qualities.empty() ? std::vector<kdrt_build_quality>{KDRT_BUILD_QUALITY_DEFAULT} : opt.qualities;
     for (const std::string &builder : opt.builders) {
         BuildVariant v;
         v.builder = builder;
@@ -85,13 +96,16 @@ std::vector<BuildVariant> build_variants(const Options &opt) {
             continue;
         }
         v.options.builder = KDRT_BUILDER_SAH;
-        for (const SahCosts &c : triples) {
-            v.options.sah_traversal_cost = c.traversal;
-            v.options.sah_intersection_cost = c.intersection;
-            v.options.sah_empty_bonus = c.empty_bonus;
-            v.sah_costs = sah_costs_label(c);
-            variants.push_back(v);
-        }
+        for (kdrt_build_quality quality : qualities)
+            for (const SahCosts &c : triples) {
+                v.options.quality = quality;
+                v.options.sah_traversal_cost = c.traversal;
+                v.options.sah_intersection_cost = c.intersection;
+                v.options.sah_empty_bonus = c.empty_bonus;
+                v.sah_costs = sah_costs_label(c);
+                v.quality = quality_name(quality);
+                variants.push_back(v);
+            }
     }
     return variants;
 }
@@ -147,6 +161,9 @@ std::string usage() {
            "                      empty bonus; KT, KI > 0, 0 < EB < 1), comma-separated: the SAH\n"
            "                      builder runs once per triple, named in the SahCosts column\n"
            "                      (default: kdrt.h's, 30:20:0.1; pbrt-v3's are 1:80:0.5)\n"
+           "  --quality LIST      the SAH build's quality: fast, medium, high, comma-separated:\n"
+           "                      the SAH builder runs once per level, named in the Quality\n"
+           "                      column (default: kdrt.h's default level)\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "                      | shadow (from the primary hits to a point light above the\n"
@@ -154,7 +171,9 @@ std::string usage() {
            "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"
            "                      brute-force reference (default 20000, seeded; 0: every ray)\n"
            "  --subdivide K       K levels of 4-to-1 subdivision of every mesh first\n"
-           "  --compare embree    also trace the same rays through Embree 3 (one thread)\n"
+           "  --compare embree    also build and trace with Embree 3: its build on --build-threads\n"
+           "                      threads at LOW quality for --quality fast, MEDIUM for the\n"
+           "                      others (both when both are asked), its rays on --threads\n"
            "  --intersector LIST  watertight (the default), fast (Moeller-Trumbore), or both\n"
            "                      separated by a comma: a row for each, named in the last column\n"
            "  --accuracy          speed beside error counts for each intersector (see below)\n"
@@ -178,7 +197,7 @@ std::string usage() {
            "kdrt_spawn_ray starts from the sample's hits (SpawnedRays: reflected, through and two\n"
            "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
            "for the same rays started exactly at the hit point, with no offset.\n"
-           "--leaf-sizes, --rays, --compare and --sah-costs do not apply.\n";
+           "--leaf-sizes, --rays, --compare, --sah-costs and --quality do not apply.\n";
 }
 
 bool parse_options(int argc, const char *const *argv, Options &out, std::string &error) {
@@ -198,7 +217,9 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         };
         std::string v;
         unsigned long long n = 0;
-        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs") csv_only_option = arg;
+        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
+            arg == "--quality")
+            csv_only_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
         size_given = size_given || arg == "--size";
         if (arg == "--help" || arg == "-h") {
@@ -292,6 +313,23 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--sah-costs") {
             if (!value(v) || !parse_sah_costs(v, out.sah_costs, error)) return false;
+        } else if (arg == "--quality") {
+            if (!value(v)) return false;
+            out.qualities.clear();
+            size_t start = 0;
+            while (true) {
+                size_t comma = v.find(',', start);
+                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+                if (item == "fast") out.qualities.push_back(KDRT_BUILD_QUALITY_FAST);
+                else if (item == "medium") out.qualities.push_back(KDRT_BUILD_QUALITY_MEDIUM);
+                else if (item == "high") out.qualities.push_back(KDRT_BUILD_QUALITY_HIGH);
+                else {
+                    error = "--quality wants fast, medium or high, separated by commas, got '" + v + "'";
+                    return false;
+                }
+                if (comma == std::string::npos) break;
+                start = comma + 1;
+            }
         } else if (arg == "--rays") {
             if (!value(v)) return false;
             if (v == "primary") out.rays = RayKind::primary;
@@ -328,6 +366,10 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     }
     if (!out.sah_costs.empty() && std::find(out.builders.begin(), out.builders.end(), "sah") == out.builders.end()) {
         error = "--sah-costs applies only to the SAH builder: add --builder sah (or median,sah)";
+        return false;
+    }
+    if (!out.qualities.empty() && std::find(out.builders.begin(), out.builders.end(), "sah") == out.builders.end()) {
+        error = "--quality applies only to the SAH builder: add --builder sah (or median,sah)";
         return false;
     }
     if (out.accuracy && !repeat_given) out.repeat = 3;
@@ -492,7 +534,7 @@ size_t count_occlusion_mismatches(const oracle::Oracle &oracle, const std::vecto
 
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
-           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads";
+           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality";
 }
 
 std::string csv_row(const Row &row) {
@@ -517,7 +559,7 @@ std::string csv_row(const Row &row) {
         n = std::snprintf(buf, sizeof buf, "%.3f", row.stats.sah_cost);
         line.append(buf, size_t(n));
     }
-    return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads);
+    return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads) + ";" + row.quality;
 }
 
 // ---- kdrt-bench --accuracy ----

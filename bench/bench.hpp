@@ -33,6 +33,7 @@ struct Options {
     std::vector<uint32_t> leaf_sizes;  // the original's list unless --leaf-sizes
     std::vector<std::string> builders{"median"};  // "median" and/or "sah", in the order given
     std::vector<SahCosts> sah_costs;   // --sah-costs: a SAH variant each; empty: kdrt.h's defaults
+    std::vector<kdrt_build_quality> qualities;  // --quality: a SAH variant each; empty: the default
     RayKind rays = RayKind::primary;
     std::string output;                // "" means stdout
     bool compare_embree = false;
@@ -51,12 +52,16 @@ const char *intersector_name(kdrt_intersector intersector);
 // What the run traces with: opt.intersectors, or the default for its mode.
 std::vector<kdrt_intersector> intersectors_for(const Options &opt);
 
-// What a run builds, in order: each builder of opt.builders, the SAH builder once per triple of
-// opt.sah_costs (or once with the defaults).
+// "fast", "medium", "high" as --quality and the Quality column spell them ("default" for 0).
+const char *quality_name(kdrt_build_quality quality);
+
+// What a run builds, in order: each builder of opt.builders, the SAH builder once per quality of
+// opt.qualities (or once at the default) and triple of opt.sah_costs (or once with the defaults).
 struct BuildVariant {
     std::string builder;          // Builder column: median or sah
     kdrt_build_options options;   // builder and SAH costs set; leaf size and intersector are not
     std::string sah_costs;        // SahCosts column: sah_costs_label() for sah, empty for median
+    std::string quality;          // Quality column: quality_name() for sah, empty for median
 };
 std::vector<BuildVariant> build_variants(const Options &opt);
 
@@ -119,7 +124,8 @@ struct Row {
     kdrt_tree_stats stats{};
     size_t mismatches = 0, reference_rays = 0;
     std::string sah_costs;             // "KT:KI:EB" on SAH rows, empty otherwise
-    unsigned build_threads = 1;        // threads the build ran on (Embree's: 1)
+    unsigned build_threads = 1;        // threads the build ran on (Embree's too)
+    std::string quality;               // the SAH build's quality, or Embree's ("low", "medium")
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

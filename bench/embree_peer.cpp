@@ -8,11 +8,14 @@
 
 namespace kb {
 
+const char *peer_quality_name(PeerQuality quality) { return quality == PeerQuality::low ? "low" : "medium"; }
+
 #ifndef KDRT_BENCH_HAVE_EMBREE
 
 bool embree_available() { return false; }
 
-bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, bool, PeerRun &, std::string &error) {
+bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, bool, PeerQuality, unsigned, PeerRun &,
+                std::string &error) {
     error = "this kdrt-bench was built without Embree (install libembree-dev and configure again)";
     return false;
 }
@@ -31,15 +34,19 @@ static RTCRay rtc_ray(const kdrt_ray &r) {
 }
 
 bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
-                PeerRun &out, std::string &error) {
-    RTCDevice device = rtcNewDevice("threads=1");  // its build on one thread, like kdrt's
+                PeerQuality quality, unsigned build_threads, PeerRun &out, std::string &error) {
+    // Its build on as many threads as kdrt's ("threads=0": all cores, as --build-threads 0).
+    const std::string config = "threads=" + std::to_string(build_threads);
+    const RTCBuildQuality rtc_quality = quality == PeerQuality::low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
+    RTCDevice device = rtcNewDevice(config.c_str());
     if (!device) {
         error = "rtcNewDevice failed";
         return false;
     }
     RTCScene scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_MEDIUM);
+    rtcSetSceneBuildQuality(scene, rtc_quality);
     RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(geometry, rtc_quality);
     // Embree's own buffers (it reads vertex buffers 16 bytes at a time, past a packed array's end).
     auto *vertices = static_cast<float *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                                    3 * sizeof(float), mesh.vertex_count()));

@@ -17,9 +17,15 @@ struct PeerRun {
 };
 
 bool embree_available();
-// Builds at RTC_BUILD_QUALITY_MEDIUM on one thread, then traces with rtcIntersect1 (or, with
-// occlusion, rtcOccluded1) on `threads` threads. false with a message if Embree fails.
+// Embree's build qualities kdrt-bench compares with: "low" (RTC_BUILD_QUALITY_LOW, a Morton
+// build) and "medium" (RTC_BUILD_QUALITY_MEDIUM, binned SAH).
+enum class PeerQuality { low, medium };
+const char *peer_quality_name(PeerQuality quality);
+
+// Builds at `quality` on a device of build_threads threads (0: all cores), then traces with
+// rtcIntersect1 (or, with occlusion, rtcOccluded1) on `threads` threads. false with a message if
+// Embree fails.
 bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
-                PeerRun &out, std::string &error);
+                PeerQuality quality, unsigned build_threads, PeerRun &out, std::string &error);
 
 }  // namespace kb

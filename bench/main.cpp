@@ -334,10 +334,21 @@ int run(int argc, char **argv) {
     if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, csv, progress, failures);
 
     const std::vector<kb::BuildVariant> variants = kb::build_variants(opt);
+    // Embree at LOW quality beside kdrt's FAST builds, at MEDIUM beside the others.
+    std::vector<kb::PeerQuality> peer_qualities;
+    if (opt.compare_embree) {
+        bool low = false, medium = false;
+        for (const kb::BuildVariant &v : variants) {
+            const bool fast = v.options.builder == KDRT_BUILDER_SAH && v.options.quality == KDRT_BUILD_QUALITY_FAST;
+            low |= fast, medium |= !fast;
+        }
+        if (low) peer_qualities.push_back(kb::PeerQuality::low);
+        if (medium) peer_qualities.push_back(kb::PeerQuality::medium);
+    }
     for (const Input &in : inputs)
         progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() *
                                             variants.size() +
-                                        opt.compare_embree);
+                                        peer_qualities.size());
 
     std::string write_error;
     const auto write_failed = [&] {
@@ -403,6 +414,7 @@ int run(int argc, char **argv) {
                     kdrt_tree_free(tree);
                     row.builder = variant.builder;
                     row.sah_costs = variant.sah_costs;
+                    row.quality = variant.quality;
                     row.intersector = kb::intersector_name(intersector);
                     row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
@@ -410,20 +422,22 @@ int run(int argc, char **argv) {
                     row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, row.triangles)
                                             : kb::count_mismatches(oracle, refs, sample, rays, hits);
                     if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
-                    progress.step(in.label + " " + variant.builder + (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
+                    progress.step(in.label + " " + variant.builder + (variant.quality.empty() ? "" : " " + variant.quality) +
+                                  (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
                                   " leaf " + std::to_string(leaf) + " " + row.intersector);
                 }
-        if (opt.compare_embree)
+        for (kb::PeerQuality quality : peer_qualities)
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
                 kb::PeerRun peer;
-                if (!kb::embree_run(scene.geometry, rays, opt.threads, shadow, peer, error)) {
+                if (!kb::embree_run(scene.geometry, rays, opt.threads, shadow, quality, opt.build_threads, peer, error)) {
                     progress.note("kdrt-bench: " + in.label + ": Embree: " + error);
                     ++failures;
                     break;
                 }
                 row.builder = "embree";
                 row.sah_costs.clear();
-                row.build_threads = 1;    // rtcNewDevice("threads=1")
+                row.quality = kb::peer_quality_name(quality);
+                row.build_threads = build_pool.threads();  // the device's threads, as kdrt's build's
                 row.intersector.clear();  // Embree's own test
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;
@@ -432,7 +446,7 @@ int run(int argc, char **argv) {
                 row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, peer.occluded, row.triangles)
                                         : kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
                 if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
-                progress.step(in.label + " embree");
+                progress.step(in.label + " embree " + row.quality);
             }
     }
     if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");

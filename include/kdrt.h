@@ -45,8 +45,8 @@
                                  default 256
        KDRT_SAH_EXACT_MAX        SAH nodes of at most this many triangle references are split
                                  by the exact sweep, larger ones by the binned one: 0 to
-                                 4294967295, default 128 (the top levels a parallel build
-                                 splits before its tasks are binned whatever the value)
+                                 4294967295, default 128 (KDRT_BUILD_QUALITY_MEDIUM's
+                                 threshold)
        KDRT_SAH_REFERENCE_BUDGET the most triangle references a SAH tree holds per triangle
                                  (THE TREE): 1 to 64, default 8
      These three exist to measure the choice: the defaults are the measured best, and any value
@@ -143,19 +143,28 @@
      node is a leaf. Triangles are sorted once per axis at the root and the children's lists are
      filtered from their parent's in order, so a level costs O(n). Depth is bounded by
      options.max_depth (at most KDRT_MAX_DEPTH), which bounds the traversal's fixed stack.
-     KDRT_BUILDER_SAH chooses each split by the surface area heuristic (Wald & Havran 2006). A
-     node with more than KDRT_SAH_EXACT_MAX (128) triangle references is binned: KDRT_SAH_BINS
-     (256) equal bins per axis, the planes between them costed from counts of the triangles' box
-     faces, O(n); where no plane between bins beats a leaf, every candidate below is tried
-     before the node is made one. At or below KDRT_SAH_EXACT_MAX every face of every triangle's
-     box on every axis is a candidate: the start, end and planar events are sorted once where a
-     subtree comes down to that size and kept in order from there (Wald & Havran's O(n log n)
-     build): a split renumbers the events of the triangles on one side, and only the events of
-     the triangles it cuts are made again and sorted.
-     A triangle cut by the plane is clipped to the node's box and that polygon split by the
-     plane (perfect splits), so it goes only where some of it lies. A node becomes a leaf when
-     it holds at most max_leaf_size triangles, at max_depth, or when no split within its
-     reference budget is cheaper than testing all its triangles (the costs are options). A leaf
+     KDRT_BUILDER_SAH chooses each split by the surface area heuristic (Wald & Havran 2006), at
+     the quality options.quality names (bench/README.md measures the three):
+     - KDRT_BUILD_QUALITY_MEDIUM, the default: a node with more than KDRT_SAH_EXACT_MAX (128)
+       triangle references is binned: KDRT_SAH_BINS (256) equal bins per axis, the planes
+       between them costed from counts of the triangles' box faces, O(n); where no plane between
+       bins beats a leaf, every candidate below is tried before the node is made one. At or below
+       KDRT_SAH_EXACT_MAX every face of every triangle's box on every axis is a candidate: the
+       start, end and planar events are sorted once where a subtree comes down to that size and
+       kept in order from there (Wald & Havran's O(n log n) build): a split renumbers the events
+       of the triangles on one side, and only the events of the triangles it cuts are made again
+       and sorted.
+     - KDRT_BUILD_QUALITY_HIGH: every candidate at every node, the events sorted at the root
+       (and at each node of a parallel build's top): the lowest SAH cost, the slowest build.
+     - KDRT_BUILD_QUALITY_FAST: every node binned, into 32 bins per axis, and never an exact
+       sweep; a triangle the plane cuts is not clipped but its box is cut at the plane, so a
+       leaf may refer to a triangle that only its box reaches (a test more, never a wrong
+       answer). For geometry rebuilt often: meshes that move, load or stream in.
+     With MEDIUM and HIGH a triangle cut by the plane is clipped to the node's box and that
+     polygon split by the plane (perfect splits), so it goes only where some of it lies. A node
+     becomes a leaf when it holds at most max_leaf_size triangles, at max_depth, or when no
+     split within its reference budget is cheaper than testing all its triangles (the costs are
+     options). A leaf
      is priced by its blocks of 8 triangles (KERNELS), ceil(n / 8) block tests, not n triangle
      tests, so the SAH stops where one block test is cheaper than more splits: on the meshes of
      bench/README.md leaves of about 20 triangles, half the references and a fourteenth of the
@@ -357,6 +366,14 @@ typedef enum kdrt_builder {
     KDRT_BUILDER_SAH = 2      /* surface area heuristic with perfect splits (see THE TREE) */
 } kdrt_builder;
 
+/* How much time KDRT_BUILDER_SAH spends for a better tree (THE TREE). */
+typedef enum kdrt_build_quality {
+    KDRT_BUILD_QUALITY_DEFAULT = 0, /* KDRT_BUILD_QUALITY_MEDIUM */
+    KDRT_BUILD_QUALITY_FAST = 1,    /* binned everywhere, triangles split by their boxes */
+    KDRT_BUILD_QUALITY_MEDIUM = 2,  /* binned above KDRT_SAH_EXACT_MAX references, exact below */
+    KDRT_BUILD_QUALITY_HIGH = 3     /* every candidate plane at every node (Wald & Havran) */
+} kdrt_build_quality;
+
 typedef enum kdrt_intersector {
     KDRT_INTERSECTOR_DEFAULT = 0,    /* KDRT_INTERSECTOR_WATERTIGHT */
     KDRT_INTERSECTOR_WATERTIGHT = 1, /* Woop, Benthin & Wald 2013: no ray slips between triangles
@@ -384,6 +401,7 @@ typedef enum kdrt_kernel {
    max_leaf_size, where 0 keeps the original's meaning: no tree. */
 typedef struct kdrt_build_options {
     kdrt_builder builder;
+    kdrt_build_quality quality;   /* KDRT_BUILDER_SAH's: build time against tree quality */
     kdrt_intersector intersector; /* the ray/triangle test every query on this tree uses */
     uint32_t max_leaf_size;   /* a node with at most this many triangles is a leaf; 0: no tree */
     uint32_t max_depth;       /* 0: 8 + 1.3 log2(triangles) (pbrt); clamped to KDRT_MAX_DEPTH */
@@ -651,6 +669,8 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #if KDRT_SAH_BINS < 2 || KDRT_SAH_BINS > 1024
 #error "kdrt: KDRT_SAH_BINS must be 2 to 1024"
 #endif
+/* KDRT_BUILD_QUALITY_FAST's bins: fewer, as it bins every node. */
+#define KDRT__FAST_BINS (KDRT_SAH_BINS < 32u ? KDRT_SAH_BINS : 32u)
 #ifndef KDRT_SAH_EXACT_MAX
 #define KDRT_SAH_EXACT_MAX 128u
 #endif
@@ -1060,6 +1080,12 @@ typedef struct kdrt__builder {
     unsigned char *side;             /* per triangle: KDRT__SIDE_* of the split being made */
     const kdrt_triangles *mesh;      /* the SAH builder clips triangles to node boxes */
     float sah_trav, sah_isect, sah_empty_bonus;
+    /* The SAH build's quality: nodes of at most exact_max references sweep every candidate
+       (events kept in order); larger ones bin into `bins` bins, and when the bins find no split
+       worth making, exact_fallback sweeps every candidate before making a leaf; clip: the
+       triangles a plane cuts are clipped to the children (perfect splits), else their boxes. */
+    uint32_t exact_max, bins;
+    int exact_fallback, clip;
     kdrt__node *nodes;
     uint32_t node_count, node_capacity;
     uint32_t *refs;
@@ -1594,23 +1620,32 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
 /* Binned sweep for large nodes: each axis cut into KDRT_SAH_BINS equal bins, a reference counted
    in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
 
+/* A reference's bin from its position f in bins (0 to top = bins - 1 inside the node): clamped as
+   a float, so the conversion never sees a value out of range, and NaN goes to bin 0. */
+static uint32_t kdrt__bin(float f, float top)
+{
+    f = f > 0.0f ? f : 0.0f;
+    f = f < top ? f : top;
+    return (uint32_t)f;
+}
+
 static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
                                const float lo[3], const float hi[3], double inv_area,
                                uint32_t budget, kdrt__plane *best)
 {
-    const uint32_t bins = KDRT_SAH_BINS;
+    const uint32_t bins = b->bins; /* at most KDRT_SAH_BINS */
+    const float top = (float)(bins - 1u);
     uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS], r, i;
     float scale[3];
     int k;
-    memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
-    for (k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? (float)bins / (hi[k] - lo[k]) : 0.0f;
+    for (k = 0; k < 3; ++k) {
+        scale[k] = hi[k] > lo[k] ? (float)bins / (hi[k] - lo[k]) : 0.0f;
+        memset(starts[k], 0, bins * sizeof(uint32_t)), memset(ends[k], 0, bins * sizeof(uint32_t));
+    }
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
-            /* Clamped as floats, so the conversion never sees a value out of int's range. */
-            float f0 = (refs[r].lo[k] - lo[k]) * scale[k], f1 = (refs[r].hi[k] - lo[k]) * scale[k];
-            f0 = f0 > 0.0f ? (f0 < (float)(bins - 1) ? f0 : (float)(bins - 1)) : 0.0f;
-            f1 = f1 > 0.0f ? (f1 < (float)(bins - 1) ? f1 : (float)(bins - 1)) : 0.0f;
-            starts[k][(int)f0] += 1, ends[k][(int)f1] += 1;
+            starts[k][kdrt__bin((refs[r].lo[k] - lo[k]) * scale[k], top)] += 1;
+            ends[k][kdrt__bin((refs[r].hi[k] - lo[k]) * scale[k], top)] += 1;
         }
     for (k = 0; k < 3; ++k) {
         uint32_t below = 0, ended = 0;
@@ -1637,12 +1672,12 @@ static double kdrt__half_area(const float lo[3], const float hi[3])
    cuts its box. */
 static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 {
-    float l = r->lo[plane->axis], h = r->hi[plane->axis];
-    if (l == plane->pos && h == plane->pos)
-        return plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
-    if (h <= plane->pos) return KDRT__SIDE_BELOW;
-    if (l >= plane->pos) return KDRT__SIDE_ABOVE;
-    return KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE;
+    /* Without branches: which side is all but random from one reference to the next. */
+    const float l = r->lo[plane->axis], h = r->hi[plane->axis], pos = plane->pos;
+    const unsigned planar = (unsigned)(l == pos) & (unsigned)(h == pos);
+    const unsigned below = (unsigned)(l < pos) | (planar & (unsigned)(plane->planar_below != 0));
+    const unsigned above = (unsigned)(h > pos) | (planar & (unsigned)(plane->planar_below == 0));
+    return below * KDRT__SIDE_BELOW | above * KDRT__SIDE_ABOVE;
 }
 
 /* The children's references, in arrays from the arena (or, with no arena, at the top of a
@@ -1655,17 +1690,16 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
                                     float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
                                     uint32_t count[2], unsigned char *sides, uint32_t *index[2])
 {
-    uint32_t only[2] = {0, 0}, both = 0, r, c;
+    uint32_t room[2] = {0, 0}, r, c;
     for (r = 0; r < n; ++r) {
         unsigned side = kdrt__ref_side(&refs[r], plane);
-        if (side == (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) ++both;
-        else ++only[side == KDRT__SIDE_ABOVE];
+        room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
     }
     for (c = 0; c < 2; ++c) {
-        size_t room = (size_t)only[c] + both;
-        child[c] =
-            (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, (room ? room : 1) * sizeof(kdrt__ref))
-                                : kdrt__alloc(b->allocator, (room ? room : 1) * sizeof(kdrt__ref)));
+        /* One to spare: a reference is written to both sides and kept on its own. */
+        size_t bytes = ((size_t)room[c] + 1) * sizeof(kdrt__ref);
+        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, bytes)
+                                       : kdrt__alloc(b->allocator, bytes));
         if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
         count[c] = 0;
     }
@@ -1673,18 +1707,32 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
         unsigned side = kdrt__ref_side(&refs[r], plane), into = side;
         float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
-        if (side == (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE))
+        if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) {
+            /* Most references: copied to both, kept where they lie, without a branch. */
+            const uint32_t keep_below = side & KDRT__SIDE_BELOW, keep_above = side >> 1;
+            child[0][count[0]] = refs[r], child[1][count[1]] = refs[r];
+            if (sides) {
+                index[0][r] = keep_below ? count[0] : KDRT_INVALID_ID;
+                index[1][r] = keep_above ? count[1] : KDRT_INVALID_ID;
+            }
+            count[0] += keep_below, count[1] += keep_above;
+            continue;
+        }
+        if (b->clip) {
             into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo,
                                     child_hi, lo, hi);
+        } else {
+            /* The box split at the plane, each part kept by the side it lies on. */
+            memcpy(lo[0], refs[r].lo, sizeof lo[0]), memcpy(hi[0], refs[r].hi, sizeof hi[0]);
+            memcpy(lo[1], refs[r].lo, sizeof lo[1]), memcpy(hi[1], refs[r].hi, sizeof hi[1]);
+            hi[0][plane->axis] = lo[1][plane->axis] = plane->pos;
+        }
         for (c = 0; c < 2; ++c) {
             kdrt__ref *out = &child[c][count[c]];
             if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
-            if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) *out = refs[r];
-            else {
-                memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
-                out->tri = refs[r].tri;
-            }
+            memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
+            out->tri = refs[r].tri;
             ++count[c];
         }
     }
@@ -1741,8 +1789,10 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
     if (events) {
         kdrt__sweep_axes(b, events, n, lo, hi, 1.0 / area, budget, best);
     } else {
-        kdrt__binned_plane(b, refs, n, lo, hi, 1.0 / area, budget, best);
-        if (!(best->cost < leaf_cost)) {
+        /* At the parallel top, HIGH sorts a node's events for it alone: every candidate still. */
+        if (b->exact_max < n || n > KDRT__EVENT_REF_MASK)
+            kdrt__binned_plane(b, refs, n, lo, hi, 1.0 / area, budget, best);
+        if (!(best->cost < leaf_cost) && b->exact_fallback && n <= KDRT__EVENT_REF_MASK) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
             if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
@@ -1833,7 +1883,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
     int binned;
 
     plane.axis = -1;
-    if (!events && n <= KDRT_SAH_EXACT_MAX && n <= KDRT__EVENT_REF_MASK) {
+    if (!events && n <= b->exact_max && n <= KDRT__EVENT_REF_MASK) {
         /* Down to the exact region: each axis's events sorted, once for the whole subtree. */
         r = kdrt__sorted_events(arena, refs, n, &entry);
         events = &entry;
@@ -2162,6 +2212,9 @@ static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
     if (opt->builder != KDRT_BUILDER_DEFAULT && opt->builder != KDRT_BUILDER_MEDIAN &&
         opt->builder != KDRT_BUILDER_SAH)
         return KDRT_ERROR_INVALID_OPTION;
+    if (opt->quality != KDRT_BUILD_QUALITY_DEFAULT && opt->quality != KDRT_BUILD_QUALITY_FAST &&
+        opt->quality != KDRT_BUILD_QUALITY_MEDIUM && opt->quality != KDRT_BUILD_QUALITY_HIGH)
+        return KDRT_ERROR_INVALID_OPTION;
     /* Negated comparisons also turn NaN away. */
     if (!(opt->sah_traversal_cost >= 0.0f) || !(opt->sah_intersection_cost >= 0.0f) ||
         !(opt->sah_empty_bonus >= 0.0f && opt->sah_empty_bonus < 1.0f) ||
@@ -2195,6 +2248,19 @@ static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
         opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
     b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangle_count);
     if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
+    switch (opt->quality) {
+    case KDRT_BUILD_QUALITY_FAST:
+        b->exact_max = 0, b->bins = KDRT__FAST_BINS, b->exact_fallback = 0, b->clip = 0;
+        break;
+    case KDRT_BUILD_QUALITY_HIGH:
+        b->exact_max = KDRT__EVENT_REF_MASK, b->bins = KDRT_SAH_BINS, b->exact_fallback = 1;
+        b->clip = 1;
+        break;
+    default:
+        b->exact_max = KDRT_SAH_EXACT_MAX, b->bins = KDRT_SAH_BINS, b->exact_fallback = 1;
+        b->clip = 1;
+        break;
+    }
 }
 
 /* An empty tree over m, with no nodes yet; NULL when out of memory. */

@@ -1,28 +1,32 @@
 # Checks the CSV of the bench_sah_costs test (--builder median,sah --sah-costs 1:80:0.5,15:20:0.2,
 # leaf size 1, the octahedron): a median row with SahCosts empty, then a SAH row per triple, in
-# order, named in SahCosts, each with its tree's SahCost priced with its own constants.
+# order, named in SahCosts, each with its tree's SahCost priced with its own constants, at the
+# default quality (Quality "default"; empty for the median row).
 file(STRINGS "${CSV}" lines)
 list(LENGTH lines n)
 if(NOT n EQUAL 4)
   message(FATAL_ERROR "expected the header and 3 rows, got ${n} lines: ${lines}")
 endif()
 list(GET lines 0 header)
-if(NOT header MATCHES ";Intersector;SahCost;SahCosts;BuildThreads$")
+if(NOT header MATCHES ";Intersector;SahCost;SahCosts;BuildThreads;Quality$")
   message(FATAL_ERROR "bad header: ${header}")
 endif()
 set(builders median sah sah)
 set(triples none 1:80:0.5 15:20:0.2)  # none: the column is empty
+set(qualities none default default)
 foreach(i 1 2 3)
   list(GET lines ${i} row)
   string(REPLACE ";" "|" row "${row}")
   math(EXPR k "${i} - 1")
   list(GET builders ${k} builder)
   list(GET triples ${k} costs)
+  list(GET qualities ${k} quality)
   if(costs STREQUAL "none")
     set(costs "")
+    set(quality "")
   endif()
   string(REPLACE "." "\\." costs "${costs}")
-  if(NOT row MATCHES "^OCTAHEDRON\\|1\\|[0-9]+\\|${builder}\\|10\\|.*\\|0\\|[0-9]+\\|watertight\\|([0-9]+\\.[0-9]+)\\|${costs}\\|1$")
+  if(NOT row MATCHES "^OCTAHEDRON\\|1\\|[0-9]+\\|${builder}\\|10\\|.*\\|0\\|[0-9]+\\|watertight\\|([0-9]+\\.[0-9]+)\\|${costs}\\|1\\|${quality}$")
     message(FATAL_ERROR "row ${i}: expected builder ${builder}, SahCosts '${costs}': ${row}")
   endif()
   set(sah_cost_${i} "${CMAKE_MATCH_1}")

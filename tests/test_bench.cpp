@@ -131,6 +131,38 @@ TEST_CASE("bench option --sah-costs: a SAH variant per triple, named in SahCosts
     CHECK(error.find("--sah-costs does not apply to --accuracy") != std::string::npos);
 }
 
+TEST_CASE("bench option --quality: a SAH variant per quality and triple, named in Quality", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    REQUIRE(parse({"--builder", "median,sah"}, opt, error));
+    std::vector<kb::BuildVariant> v = kb::build_variants(opt);
+    REQUIRE(v.size() == 2);
+    CHECK(v[0].quality.empty());
+    CHECK(v[1].quality == "default");
+    CHECK(v[1].options.quality == KDRT_BUILD_QUALITY_DEFAULT);
+
+    REQUIRE(parse({"--builder", "sah", "--quality", "high,fast", "--sah-costs", "1:80:0.5,15:20:0.2"}, opt, error));
+    v = kb::build_variants(opt);
+    REQUIRE(v.size() == 4);  // each quality in the order given, each with every triple
+    CHECK((v[0].quality == "high" && v[0].options.quality == KDRT_BUILD_QUALITY_HIGH && v[0].sah_costs == "1:80:0.5"));
+    CHECK((v[1].quality == "high" && v[1].sah_costs == "15:20:0.2"));
+    CHECK((v[2].quality == "fast" && v[2].options.quality == KDRT_BUILD_QUALITY_FAST && v[2].sah_costs == "1:80:0.5"));
+    CHECK((v[3].quality == "fast" && v[3].options.builder == KDRT_BUILDER_SAH));
+    REQUIRE(parse({"--builder", "sah", "--quality", "medium"}, opt, error));
+    CHECK(kb::build_variants(opt)[0].options.quality == KDRT_BUILD_QUALITY_MEDIUM);
+
+    for (const char *bad : {"", "low", "fast,", "fast,,high", "FAST", "medium high"}) {
+        INFO("'" << bad << "'");
+        error.clear();
+        CHECK_FALSE(parse({"--builder", "sah", "--quality", bad}, opt, error));
+        CHECK(error.find("--quality") != std::string::npos);
+    }
+    CHECK_FALSE(parse({"--quality", "fast"}, opt, error));  // the median builder has no quality
+    CHECK(error.find("--builder sah") != std::string::npos);
+    CHECK_FALSE(parse({"--accuracy", "--builder", "sah", "--quality", "fast"}, opt, error));
+    CHECK(error.find("--quality does not apply to --accuracy") != std::string::npos);
+}
+
 TEST_CASE("bench options --intersector and --accuracy parse, with their defaults", "[bench]") {
     kb::Options opt;
     std::string error;
@@ -374,7 +406,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     REQUIRE(columns == std::vector<std::string>{"Mesh", "MaxLeafSize", "ElapsedMs", "Builder", "Triangles", "BuildMs",
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
-                                                "Intersector", "SahCost", "SahCosts", "BuildThreads"});
+                                                "Intersector", "SahCost", "SahCosts", "BuildThreads", "Quality"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
@@ -413,6 +445,10 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     CHECK(f[15] == "watertight");  // the default; new columns go last so the columns before keep their places
     CHECK(f[16] == "123.457");
     CHECK(f[17].empty());  // median: no cost constants of its own
+    CHECK(f[19].empty());  // nor a quality
+    row.quality = "fast";
+    CHECK(split(kb::csv_row(row), ';')[19] == "fast");
+    row.quality.clear();
     row.builder = "sah";
     row.sah_costs = "1:80:0.5";
     CHECK(split(kb::csv_row(row), ';')[17] == "1:80:0.5");

@@ -196,13 +196,22 @@ TEST_CASE("errors: unknown builder or flag", "[errors]") {
         CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
         CHECK(tree == nullptr);
     }
-    for (kdrt_builder builder : {KDRT_BUILDER_DEFAULT, KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
+    for (int quality : {4, -1, 1000}) {
+        INFO("quality " << quality);
         kdrt_build_options o = kdrt_default_build_options();
-        o.builder = builder;
-        o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
-        REQUIRE(try_build(m, o, &tree) == KDRT_SUCCESS);
-        kdrt_tree_free(tree);
+        o.quality = kdrt_build_quality(quality);
+        CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
+        CHECK(tree == nullptr);
     }
+    for (kdrt_builder builder : {KDRT_BUILDER_DEFAULT, KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+        for (kdrt_build_quality quality : {KDRT_BUILD_QUALITY_DEFAULT, KDRT_BUILD_QUALITY_FAST, KDRT_BUILD_QUALITY_MEDIUM,
+                                           KDRT_BUILD_QUALITY_HIGH}) {
+            kdrt_build_options o = kdrt_default_build_options();
+            o.builder = builder, o.quality = quality;
+            o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+            REQUIRE(try_build(m, o, &tree) == KDRT_SUCCESS);
+            kdrt_tree_free(tree);
+        }
 }
 
 TEST_CASE("errors: SAH costs out of range", "[errors]") {
@@ -559,14 +568,14 @@ TEST_CASE("errors: a tree of only degenerate or skipped triangles answers rays t
                              {{0.5f, 0, -1}, 0, {0, 0, 1}, INFINITY},
                              {{-1, 0, 0}, 0, {1, 0, 0}, INFINITY}};  // along the triangle
     for (const uint32_t *indices : {collinear, with_nan})
-        for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+        for (const kt::Builder &builder : kt::kBuilders)
             for (uint32_t leaf : kLeafSizes) {
-                INFO((indices == collinear ? "collinear" : "NaN corner, skipped") << ", builder " << int(builder)
+                INFO((indices == collinear ? "collinear" : "NaN corner, skipped") << ", builder " << builder.name
                                                                                  << ", leaf size " << leaf);
                 kdrt_triangles m{};
                 m.positions = v, m.vertex_count = 4, m.indices = indices, m.triangle_count = 1;
                 kdrt_build_options o = options_with_leaf(leaf);
-                o.builder = builder;
+                builder.apply(o);
                 o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
                 kdrt_tree *tree;
                 REQUIRE(try_build(m, o, &tree) == KDRT_SUCCESS);
@@ -811,23 +820,26 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
     {  // the SAH builder allocates per node: a smaller soup keeps the k-th-failure loop short
         common::Mesh small = kt::random_soup(60, 18);
         kdrt_triangles sv = small.view();
-        for (uint32_t leaf : {1u, 4u}) {
-            INFO("SAH, leaf size " << leaf);
-            kdrt_build_options o = options_with_leaf(leaf);
-            o.builder = KDRT_BUILDER_SAH;
-            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
-        }
+        for (const kt::Builder &builder : kt::kSahBuilders)
+            for (uint32_t leaf : {1u, 4u}) {
+                INFO(builder.name << ", leaf size " << leaf);
+                kdrt_build_options o = options_with_leaf(leaf);
+                builder.apply(o);
+                fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+            }
     }
     {  // large enough for the SAH build to cut its top into tasks, run here in reverse order
         common::Mesh soup = kt::random_soup(9000, 19);
         kdrt_triangles sv = soup.view();
-        kdrt_build_options o = options_with_leaf(4);
-        o.builder = KDRT_BUILDER_SAH;
-        o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
-            for (uint32_t i = count; i-- > 0;) task(data, i);
-        };
-        INFO("SAH in tasks");
-        fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+        for (const kt::Builder &builder : kt::kSahBuilders) {
+            kdrt_build_options o = options_with_leaf(4);
+            builder.apply(o);
+            o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
+                for (uint32_t i = count; i-- > 0;) task(data, i);
+            };
+            INFO(builder.name << " in tasks");
+            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+        }
     }
 }
 

@@ -638,12 +638,12 @@ TEST_CASE("hard: coplanar overlapping triangles: the lower caller index wins, wh
     for (size_t i = 1; i < fillers.positions.size(); i += 3) fillers.positions[i] += 30;
     s.mesh.positions.insert(s.mesh.positions.end(), fillers.positions.begin(), fillers.positions.end());
     kdrt_triangles view = s.mesh.view();
-    for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+    for (const kt::Builder &builder : kt::kBuilders)
         for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
             for (uint32_t leaf : kLeafSizes) {
-                INFO("builder " << builder << " intersector " << intersector << " leaf size " << leaf);
+                INFO("builder " << builder.name << " intersector " << intersector << " leaf size " << leaf);
                 kdrt_build_options o = kdrt_default_build_options();
-                o.builder = builder, o.intersector = intersector, o.max_leaf_size = leaf;
+                builder.apply(o), o.intersector = intersector, o.max_leaf_size = leaf;
                 kdrt_tree *raw = nullptr;
                 REQUIRE(kdrt_tree_build(&view, &o, &raw, nullptr) == KDRT_SUCCESS);
                 kt::TreePtr tree(raw);
@@ -667,11 +667,11 @@ TEST_CASE("hard: the tree's blocks: a soup costs what its indexed mesh does, lef
     for (uint32_t i = 0; i < 40; ++i) extra.indices.insert(extra.indices.end(), {i, i, i + 1});
     for (uint32_t i = 0; i < 10; ++i) extra.indices.insert(extra.indices.end(), {i, i + 1, mesh.vertex_count() + i});
 
-    for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+    for (const kt::Builder &builder : kt::kBuilders)
         for (uint32_t leaf : kLeafSizes) {
-            INFO("builder " << builder << " leaf size " << leaf);
+            INFO("builder " << builder.name << " leaf size " << leaf);
             kdrt_build_options o = kdrt_default_build_options();
-            o.builder = builder, o.max_leaf_size = leaf, o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+            builder.apply(o), o.max_leaf_size = leaf, o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
             kdrt_tree_stats st[3];
             const common::Mesh *meshes[3] = {&mesh, &soup, &extra};
             for (int k = 0; k < 3; ++k) {
@@ -909,11 +909,11 @@ TEST_CASE("hard: tree statistics are consistent and follow the documented median
 
 namespace {
 
-kt::TreePtr build_priced(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf, float traversal, float intersection,
-                         float empty_bonus = 0) {
+kt::TreePtr build_priced(const common::Mesh &mesh, const kt::Builder &builder, uint32_t leaf, float traversal,
+                         float intersection, float empty_bonus = 0) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options o = kdrt_default_build_options();
-    o.builder = builder;
+    builder.apply(o);
     o.max_leaf_size = leaf;
     o.sah_traversal_cost = traversal;
     o.sah_intersection_cost = intersection;
@@ -921,6 +921,12 @@ kt::TreePtr build_priced(const common::Mesh &mesh, kdrt_builder builder, uint32_
     kdrt_tree *tree = nullptr;
     REQUIRE(kdrt_tree_build(&view, &o, &tree, nullptr) == KDRT_SUCCESS);
     return kt::TreePtr(tree);
+}
+
+kt::TreePtr build_priced(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf, float traversal, float intersection,
+                         float empty_bonus = 0) {
+    return build_priced(mesh, kt::Builder{builder, KDRT_BUILD_QUALITY_DEFAULT, "default"}, leaf, traversal, intersection,
+                        empty_bonus);
 }
 
 kdrt_tree_stats stats_of(const kt::TreePtr &tree) {
@@ -984,7 +990,8 @@ TEST_CASE("hard: sah_cost is the SAH cost of the built tree, priced with the bui
     // No tree (leaf size 0): K_I per block of 8 triangles, whatever the builder; the empty tree
     // costs nothing.
     const common::Mesh ball = kt::sphere(16, 24, 2.0);
-    for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH}) {
+    for (const kt::Builder &builder : kt::kBuilders) {
+        INFO("builder " << builder.name);
         kdrt_tree_stats s = stats_of(build_priced(ball, builder, 0, 0, 0));
         CHECK(s.sah_cost == Approx(20.0 * ((s.triangles + 7) / 8)).epsilon(1e-12));
         s = stats_of(build_priced(ball, builder, 0, 3, 7));

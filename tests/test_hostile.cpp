@@ -25,10 +25,10 @@ common::Mesh scaled(const common::Mesh &mesh, double scale) {
     return m;
 }
 
-kt::TreePtr build(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf,
+kt::TreePtr build(const common::Mesh &mesh, const kt::Builder &builder, uint32_t leaf,
                   const kdrt_scheduler &scheduler = kdrt_scheduler{nullptr, nullptr}) {
     kdrt_build_options o = kdrt_default_build_options();
-    o.builder = builder;
+    builder.apply(o);
     o.max_leaf_size = leaf;
     o.scheduler = scheduler;
     const kdrt_triangles view = mesh.view();
@@ -40,7 +40,7 @@ kt::TreePtr build(const common::Mesh &mesh, kdrt_builder builder, uint32_t leaf,
 // The tree answers `rays` as the double-precision reference does, exactly as testing every
 // triangle does (the header's promise), and the rays hit something.
 void check_against_every_triangle(const common::Mesh &mesh, const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
-    kt::TreePtr all = build(mesh, KDRT_BUILDER_SAH, 0);
+    kt::TreePtr all = build(mesh, kt::kBuilders[0], 0);  // leaf size 0: every triangle
     const std::vector<kdrt_hit> want = kt::trace_all(all.get(), rays), got = kt::trace_all(tree, rays);
     const oracle::Oracle reference(mesh);
     const std::vector<oracle::Reference> refs = oracle::reference_all(reference, rays);
@@ -67,11 +67,11 @@ TEST_CASE("hostile: a mesh scaled by 2^-60 to 2^60 gets the same tree, node for 
     const common::Mesh meshes[] = {kt::random_soup(6000, 3), kt::grid(30, 30, 4), kt::sphere(24, 48, 1.0),
                                    oracle::hostile_mesh("overlapping", 2000, 5)};
     for (const common::Mesh &mesh : meshes)
-        for (kdrt_builder builder : {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH})
+        for (const kt::Builder &builder : kt::kBuilders)
             for (uint32_t leaf : {1u, 4u}) {
                 kt::TreePtr unit = build(mesh, builder, leaf);
                 for (int power : {-60, -40, -20, 20, 40, 60}) {
-                    INFO(mesh.name << ", " << (builder == KDRT_BUILDER_SAH ? "SAH" : "median") << ", leaf size "
+                    INFO(mesh.name << ", " << builder.name << ", leaf size "
                                    << leaf << ", scaled by 2^" << power);
                     const double scale = std::ldexp(1.0, power);
                     kt::TreePtr big = build(scaled(mesh, scale), builder, leaf);
@@ -83,23 +83,26 @@ TEST_CASE("hostile: a mesh scaled by 2^-60 to 2^60 gets the same tree, node for 
 TEST_CASE("hostile: a 200,000-triangle grid at 1e20 and 1e-20 gets a tree as good as at 1", "[hostile]") {
     const common::Mesh grid = kt::grid(317, 316, 8);
     REQUIRE(grid.triangle_count() >= 200000);
-    kt::TreePtr unit = build(grid, KDRT_BUILDER_SAH, 4);
-    kdrt_tree_stats base;
-    kdrt_tree_get_stats(unit.get(), &base);
-    const std::vector<kdrt_ray> unit_rays = kt::random_rays(kdrt_tree_bounds(unit.get()), 300, 9);
-    for (double scale : {1e20, 1e-20}) {
-        INFO("scaled by " << scale);
-        const common::Mesh far = scaled(grid, scale);
-        std::vector<kdrt_ray> rays = unit_rays;  // the same rays, scaled with the scene
-        for (kdrt_ray &r : rays)
-            for (int a = 0; a < 3; ++a) r.org[a] = float(r.org[a] * scale), r.dir[a] = float(r.dir[a] * scale);
-        kt::TreePtr tree = build(far, KDRT_BUILDER_SAH, 4);
-        kdrt_tree_stats s;
-        kdrt_tree_get_stats(tree.get(), &s);
-        // Not a power of two: rounding moves some vertices, so the trees may differ a little.
-        CHECK(s.nodes > base.nodes / 2);
-        CHECK(s.sah_cost < base.sah_cost * 1.01);
-        check_against_every_triangle(far, tree.get(), rays);
+    for (const kt::Builder &builder : kt::kSahBuilders) {
+        INFO(builder.name);
+        kt::TreePtr unit = build(grid, builder, 4);
+        kdrt_tree_stats base;
+        kdrt_tree_get_stats(unit.get(), &base);
+        const std::vector<kdrt_ray> unit_rays = kt::random_rays(kdrt_tree_bounds(unit.get()), 300, 9);
+        for (double scale : {1e20, 1e-20}) {
+            INFO("scaled by " << scale);
+            const common::Mesh far = scaled(grid, scale);
+            std::vector<kdrt_ray> rays = unit_rays;  // the same rays, scaled with the scene
+            for (kdrt_ray &r : rays)
+                for (int a = 0; a < 3; ++a) r.org[a] = float(r.org[a] * scale), r.dir[a] = float(r.dir[a] * scale);
+            kt::TreePtr tree = build(far, builder, 4);
+            kdrt_tree_stats s;
+            kdrt_tree_get_stats(tree.get(), &s);
+            // Not a power of two: rounding moves some vertices, so the trees may differ a little.
+            CHECK(s.nodes > base.nodes / 2);
+            CHECK(s.sah_cost < base.sah_cost * 1.01);
+            check_against_every_triangle(far, tree.get(), rays);
+        }
     }
 }
 
@@ -112,21 +115,22 @@ TEST_CASE("hostile: fans, slivers, overlapping and identical triangles stay with
     for (const std::string &kind : oracle::hostile_kinds()) {
         const common::Mesh mesh = oracle::hostile_mesh(kind, n, 12);
         REQUIRE(mesh.triangle_count() == n);
-        for (uint32_t leaf : {1u, 4u}) {
-            INFO(mesh.name << ", leaf size " << leaf);
-            kt::TreePtr tree = build(mesh, KDRT_BUILDER_SAH, leaf);
-            kdrt_tree_stats s;
-            kdrt_tree_get_stats(tree.get(), &s);
-            CHECK(s.triangles == n);
-            CHECK(s.triangle_refs <= uint64_t(kReferenceBudget) * n);
-            WARN(mesh.name << ", leaf size " << leaf << ": " << s.triangle_refs / double(n) << " references, "
-                           << s.nodes / double(n) << " nodes and " << s.bytes / double(n)
-                           << " bytes a triangle, depth " << s.max_depth);
-            common::ThreadScheduler pool(2);
-            kt::TreePtr parallel = build(mesh, KDRT_BUILDER_SAH, leaf, pool.hooks());
-            kt::check_same_shape(tree.get(), parallel.get(), 1.0);
-            check_against_every_triangle(mesh, tree.get(), kt::random_rays(kdrt_tree_bounds(tree.get()), 400, 13));
-        }
+        for (const kt::Builder &builder : kt::kSahBuilders)
+            for (uint32_t leaf : {1u, 4u}) {
+                INFO(mesh.name << ", " << builder.name << ", leaf size " << leaf);
+                kt::TreePtr tree = build(mesh, builder, leaf);
+                kdrt_tree_stats s;
+                kdrt_tree_get_stats(tree.get(), &s);
+                CHECK(s.triangles == n);
+                CHECK(s.triangle_refs <= uint64_t(kReferenceBudget) * n);
+                WARN(mesh.name << ", " << builder.name << ", leaf size " << leaf << ": " << s.triangle_refs / double(n) << " references, "
+                               << s.nodes / double(n) << " nodes and " << s.bytes / double(n)
+                               << " bytes a triangle, depth " << s.max_depth);
+                common::ThreadScheduler pool(2);
+                kt::TreePtr parallel = build(mesh, builder, leaf, pool.hooks());
+                kt::check_same_shape(tree.get(), parallel.get(), 1.0);
+                check_against_every_triangle(mesh, tree.get(), kt::random_rays(kdrt_tree_bounds(tree.get()), 400, 13));
+            }
     }
 }
 

@@ -164,16 +164,21 @@ std::vector<unsigned char> occluded_all(const kdrt_tree *tree, const std::vector
     return occluded;
 }
 
-TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder) {
+TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, const Builder &builder) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
     options.max_leaf_size = max_leaf_size;
-    options.builder = builder;
+    builder.apply(options);
     kdrt_tree *tree = nullptr;
     kdrt_result r = kdrt_tree_build(&view, &options, &tree, nullptr);
-    INFO("build " << mesh.name << " builder " << builder << " leaf size " << max_leaf_size << ": " << kdrt_result_string(r));
+    INFO("build " << mesh.name << " builder " << builder.name << " leaf size " << max_leaf_size << ": "
+                  << kdrt_result_string(r));
     REQUIRE(r == KDRT_SUCCESS);
     return TreePtr(tree);
+}
+
+TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder) {
+    return build(mesh, max_leaf_size, Builder{builder, KDRT_BUILD_QUALITY_DEFAULT, builder == KDRT_BUILDER_MEDIAN ? "median" : "sah"});
 }
 
 size_t reference_ray_count() {
@@ -234,15 +239,16 @@ void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed) {
     const size_t brute_rays = brute_force_rays(rays.size(), mesh.triangle_count());
     log << mesh.name << ": " << mesh.triangle_count() << " triangles, " << rays.size() << " rays (leaf size 0: the first "
         << brute_rays << ")\n"
-        << "  tree        hits   exact  ambiguous  wrong  unlike leaf 0  occluded unlike hit  seconds";
+        << "  tree            hits   exact  ambiguous  wrong  unlike leaf 0  occluded unlike hit  seconds";
     std::vector<kdrt_hit> brute;  // leaf size 0's answers
-    std::vector<std::pair<kdrt_builder, uint32_t>> trees;  // leaf size 0 first
-    for (uint32_t leaf : kLeafSizes) trees.emplace_back(KDRT_BUILDER_MEDIAN, leaf);
-    for (uint32_t leaf : kSahLeafSizes) trees.emplace_back(KDRT_BUILDER_SAH, leaf);
+    std::vector<std::pair<Builder, uint32_t>> trees;  // leaf size 0 first
+    for (uint32_t leaf : kLeafSizes) trees.emplace_back(kBuilders[0], leaf);
+    for (const Builder &sah : kSahBuilders)
+        for (uint32_t leaf : kSahLeafSizes) trees.emplace_back(sah, leaf);
     for (const auto &config : trees) {
-        const kdrt_builder builder = config.first;
+        const Builder &builder = config.first;
         const uint32_t leaf = config.second;
-        const char *name = builder == KDRT_BUILDER_SAH ? "sah" : "median";
+        const char *name = builder.name;
         const auto tree_start = std::chrono::steady_clock::now();
         TreePtr tree = build(mesh, leaf, builder);
         // Leaf size 0 tests every triangle for every ray: it takes the first brute_rays.
@@ -266,7 +272,7 @@ void check_scene(const Mesh &mesh, size_t ray_count, uint32_t seed) {
                                          std::to_string(int(occluded[i])) + ", kdrt_intersect " + hex_hit(h);
         }
         char row[160];
-        std::snprintf(row, sizeof row, "\n  %-6s %4u %7zu %7zu %10zu %6zu %14zu %20zu %8.1f", name, leaf, hit_count, tally.exact,
+        std::snprintf(row, sizeof row, "\n  %-10s %4u %7zu %7zu %10zu %6zu %14zu %20zu %8.1f", name, leaf, hit_count, tally.exact,
                       tally.ambiguous, tally.wrong, not_as_brute, occluded_differs,
                       std::chrono::duration<double>(std::chrono::steady_clock::now() - tree_start).count());
         log << row;

@@ -56,9 +56,24 @@ struct TreePtr {
     kdrt_tree *get() const { return tree; }
 };
 
+// A builder under test: the median builder, or the SAH builder at one quality.
+struct Builder {
+    kdrt_builder builder;
+    kdrt_build_quality quality;
+    const char *name;  // "median", "sah-fast", "sah-medium", "sah-high"
+    void apply(kdrt_build_options &o) const { o.builder = builder, o.quality = quality; }
+};
+// The SAH builder at each quality, and every builder: what the suites build.
+constexpr Builder kSahBuilders[] = {{KDRT_BUILDER_SAH, KDRT_BUILD_QUALITY_FAST, "sah-fast"},
+                                    {KDRT_BUILDER_SAH, KDRT_BUILD_QUALITY_MEDIUM, "sah-medium"},
+                                    {KDRT_BUILDER_SAH, KDRT_BUILD_QUALITY_HIGH, "sah-high"}};
+constexpr Builder kBuilders[] = {{KDRT_BUILDER_MEDIAN, KDRT_BUILD_QUALITY_DEFAULT, "median"}, kSahBuilders[0],
+                                 kSahBuilders[1], kSahBuilders[2]};
+
 // A tree of `mesh` built with kdrt_default_build_options() but for the leaf size and builder; the
 // builder defaults to the library's (KDRT_BUILDER_DEFAULT). REQUIREs success.
 TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_DEFAULT);
+TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, const Builder &builder);
 
 // b is a's tree with every coordinate multiplied by scale (a power of two, or 1): the same
 // statistics, nodes, splits and references, in the same order, and the same SAH cost. FAILs with

@@ -28,24 +28,23 @@
 
 namespace {
 
-// Builders under test.
-const kdrt_builder kBuilders[] = {KDRT_BUILDER_MEDIAN, KDRT_BUILDER_SAH};
-const char *builder_name(kdrt_builder b) { return b == KDRT_BUILDER_MEDIAN ? "median" : b == KDRT_BUILDER_SAH ? "sah" : "default"; }
+// Builders under test: kt::kBuilders, the median one and the SAH one at each quality.
+using kt::kBuilders;
 const char *intersector_name(kdrt_intersector i) { return i == KDRT_INTERSECTOR_FAST ? "fast" : "watertight"; }
 
 // Leaf sizes 1, 4 and 16 put split planes through vertices and edges (median centroids of small
 // integer triangles are often vertex coordinates); 0 tests every triangle.
 const uint32_t kWatertightLeafSizes[] = {0, 1, 4, 16};
 
-kt::TreePtr build_tree(const common::Mesh &mesh, kdrt_builder builder, kdrt_intersector intersector, uint32_t leaf) {
+kt::TreePtr build_tree(const common::Mesh &mesh, const kt::Builder &builder, kdrt_intersector intersector, uint32_t leaf) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
-    options.builder = builder;
+    builder.apply(options);
     options.intersector = intersector;
     options.max_leaf_size = leaf;
     kdrt_tree *tree = nullptr;
     kdrt_result r = kdrt_tree_build(&view, &options, &tree, nullptr);
-    INFO("build " << mesh.name << " " << builder_name(builder) << " " << intersector_name(intersector) << " leaf size " << leaf
+    INFO("build " << mesh.name << " " << builder.name << " " << intersector_name(intersector) << " leaf size " << leaf
                   << ": " << kdrt_result_string(r));
     REQUIRE(r == KDRT_SUCCESS);
     return kt::TreePtr(tree);
@@ -144,14 +143,14 @@ TEST_CASE("watertight: no ray aimed at a vertex or an edge slips through a close
         const size_t brute = std::min(count, std::max<size_t>(size_t(2e6 * scale / mesh.triangle_count()), 100));
         const std::vector<kdrt_ray> brute_rays(rays.begin(), rays.begin() + std::ptrdiff_t(brute));
         size_t tight_leaks = 0, fast_leaks_brute = 0, fast_leaks_tree = 0;
-        for (kdrt_builder builder : kBuilders)
+        for (const kt::Builder &builder : kBuilders)
             for (uint32_t leaf : kWatertightLeafSizes) {
                 const std::vector<kdrt_ray> &set = leaf == 0 ? brute_rays : rays;
                 kt::TreePtr tight = build_tree(mesh, builder, KDRT_INTERSECTOR_WATERTIGHT, leaf);
                 const oracle::ErrorCounts w = oracle::count_leaks(tight.get(), set);
                 traced += w.rays;
                 tight_leaks += w.leaks;
-                INFO(builder_name(builder) << " builder, leaf size " << leaf << ", " << w.rays << " rays: " << w.leaks
+                INFO(builder.name << " builder, leaf size " << leaf << ", " << w.rays << " rays: " << w.leaks
                                            << " leaks; first: " << w.first);
                 CHECK(w.leaks == 0);
                 CHECK(w.rays == set.size());
@@ -215,7 +214,7 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
         CHECK_FALSE(oracle.in_plane_contact(c.ray, 0, -1.0));
         for (kdrt_intersector intersector : {KDRT_INTERSECTOR_FAST, KDRT_INTERSECTOR_WATERTIGHT})
             for (uint32_t leaf : {0u, 1u}) {
-                kt::TreePtr tree = build_tree(mesh, KDRT_BUILDER_MEDIAN, intersector, leaf);
+                kt::TreePtr tree = build_tree(mesh, kt::kBuilders[0], intersector, leaf);
                 kdrt_hit h;
                 const int hit = kdrt_intersect(tree.get(), &c.ray, &h);
                 in_plane_hits += hit;
@@ -248,7 +247,7 @@ TEST_CASE("watertight: rays lying exactly in a triangle's plane hit it only wher
     }
     for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
         for (uint32_t leaf : kWatertightLeafSizes) {
-            kt::TreePtr tree = build_tree(*box, KDRT_BUILDER_MEDIAN, intersector, leaf);
+            kt::TreePtr tree = build_tree(*box, kt::kBuilders[0], intersector, leaf);
             kdrt_hit h;
             const int hit = kdrt_intersect(tree.get(), &out, &h);
             INFO(intersector_name(intersector) << " intersector, leaf size " << leaf << ": " << hex_hit(h));
@@ -272,7 +271,7 @@ TEST_CASE("hard sets: every answer agrees with the oracle and every leaf size an
         const oracle::Oracle oracle(set.mesh);
         const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, set.rays);
         for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
-            for (kdrt_builder builder : kBuilders) {
+            for (const kt::Builder &builder : kBuilders) {
                 std::vector<kdrt_hit> brute;
                 size_t hit_count = 0, exact = 0, ambiguous = 0, wrong = 0, false_hits = 0, unlike_total = 0;
                 for (uint32_t leaf : kt::kLeafSizes) {
@@ -292,7 +291,7 @@ TEST_CASE("hard sets: every answer agrees with the oracle and every leaf size an
                     hit_count = std::max(hit_count, hit_now), exact = std::max(exact, tally.exact);
                     ambiguous = std::max(ambiguous, tally.ambiguous), wrong = std::max(wrong, e.mismatches);
                     false_hits = std::max(false_hits, e.false_hits), unlike_total += unlike;
-                    INFO(intersector_name(intersector) << " intersector, " << builder_name(builder) << " builder, leaf size " << leaf);
+                    INFO(intersector_name(intersector) << " intersector, " << builder.name << " builder, leaf size " << leaf);
                     {
                         INFO("first wrong: " << e.first);
                         CHECK(e.mismatches == 0);
@@ -305,7 +304,7 @@ TEST_CASE("hard sets: every answer agrees with the oracle and every leaf size an
                         // z = 1.8e-16 over a ray at z = 0, which leaf size 0 "hits" and the SAH
                         // tree rightly culls). Both answers agree with the oracle (checked above).
                         INFO("first: " << first_unlike);
-                        if (intersector == KDRT_INTERSECTOR_WATERTIGHT || builder == KDRT_BUILDER_MEDIAN) CHECK(unlike == 0);
+                        if (intersector == KDRT_INTERSECTOR_WATERTIGHT || builder.builder == KDRT_BUILDER_MEDIAN) CHECK(unlike == 0);
                         else CHECK(unlike * 1000 <= hits.size());
                     }
                     CHECK(hit_now > 0);
@@ -353,7 +352,7 @@ TEST_CASE("far from the origin: spawned rays never hit the triangle they leave",
             const oracle::Oracle oracle(mesh);
             const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, rays);
             for (kdrt_intersector intersector : {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST})
-                for (kdrt_builder builder : kBuilders) {
+                for (const kt::Builder &builder : kBuilders) {
                     // The secondary rays, spawned once from the leaf size 4 tree's hits (every leaf
                     // size hits the same), and their own references.
                     std::vector<kdrt_ray> spawned;
@@ -377,7 +376,7 @@ TEST_CASE("far from the origin: spawned rays never hit the triangle they leave",
                         spawned_count += s.rays;
                         if (offset == 1e5) naive_far[0] += nv.self_hits;
                         if (offset == 1e7) naive_far[1] += nv.self_hits;
-                        INFO(intersector_name(intersector) << " intersector, " << builder_name(builder) << " builder, leaf size " << leaf);
+                        INFO(intersector_name(intersector) << " intersector, " << builder.name << " builder, leaf size " << leaf);
                         {
                             INFO("first wrong: " << m.first);
                             CHECK(m.mismatches == 0);
