@@ -186,9 +186,11 @@
      the budget and keep their trees; a fan of triangles round one vertex gets big
      leaves round it instead of references without end.
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
-     split on the calling thread; the subtrees below, at most 64, are independent tasks handed
-     to options.scheduler, then joined in depth-first order. The cut depends only on the input,
-     so the tree is the same for any scheduler, thread count or task order, and without one.
+     split on the calling thread, its nodes of 16384 references or more binned in 16 chunks that
+     are tasks on options.scheduler; the subtrees below, at most 64, are independent tasks too,
+     then joined in depth-first order. The cut and the chunks depend only on the input, so the
+     tree is the same for any scheduler, thread count or task order, and without one. The
+     scheduler's run() is called several times a build: a scheduler should keep its threads.
      max_leaf_size = 0 means no tree: every query tests every triangle, through the same API.
      Memory, whatever the builder: 8 bytes a node (pbrt-v3's layout), then the triangles the
      intersection tests read, copied at the end of the build so that a test does not chase the
@@ -1629,33 +1631,55 @@ static uint32_t kdrt__bin(float f, float top)
     return (uint32_t)f;
 }
 
-static void kdrt__binned_plane(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
-                               const float lo[3], const float hi[3], double inv_area,
-                               uint32_t budget, kdrt__plane *best)
+/* A node's bins: per axis, how many references' boxes start and end in each bin. */
+typedef struct kdrt__bins {
+    uint32_t count; /* bins per axis: b->bins */
+    float lo[3], scale[3]; /* the node's box: bin of x = (x - lo) * scale, clamped */
+    uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS];
+} kdrt__bins;
+
+static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const float hi[3],
+                            kdrt__bins *bins)
 {
-    const uint32_t bins = b->bins; /* at most KDRT_SAH_BINS */
-    const float top = (float)(bins - 1u);
-    uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS], r, i;
-    float scale[3];
     int k;
+    bins->count = b->bins; /* at most KDRT_SAH_BINS */
     for (k = 0; k < 3; ++k) {
-        scale[k] = hi[k] > lo[k] ? (float)bins / (hi[k] - lo[k]) : 0.0f;
-        memset(starts[k], 0, bins * sizeof(uint32_t)), memset(ends[k], 0, bins * sizeof(uint32_t));
+        bins->lo[k] = lo[k];
+        bins->scale[k] = hi[k] > lo[k] ? (float)bins->count / (hi[k] - lo[k]) : 0.0f;
+        memset(bins->starts[k], 0, bins->count * sizeof(uint32_t));
+        memset(bins->ends[k], 0, bins->count * sizeof(uint32_t));
     }
+}
+
+/* Counts refs[0..n) into bins. */
+static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
+{
+    const float top = (float)(bins->count - 1u);
+    uint32_t r;
+    int k;
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
-            starts[k][kdrt__bin((refs[r].lo[k] - lo[k]) * scale[k], top)] += 1;
-            ends[k][kdrt__bin((refs[r].hi[k] - lo[k]) * scale[k], top)] += 1;
+            bins->starts[k][kdrt__bin((refs[r].lo[k] - bins->lo[k]) * bins->scale[k], top)] += 1;
+            bins->ends[k][kdrt__bin((refs[r].hi[k] - bins->lo[k]) * bins->scale[k], top)] += 1;
         }
+}
+
+/* The planes between bins of a node of n references, costed from the bins' counts. */
+static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uint32_t n,
+                             const float lo[3], const float hi[3], double inv_area,
+                             uint32_t budget, kdrt__plane *best)
+{
+    uint32_t i;
+    int k;
     for (k = 0; k < 3; ++k) {
         uint32_t below = 0, ended = 0;
         kdrt__axis_cost cost;
-        if (scale[k] == 0.0f) continue;
+        if (bins->scale[k] == 0.0f) continue;
         cost = kdrt__axis_setup(b, k, lo, hi, inv_area, budget);
-        for (i = 1; i < bins; ++i) {
-            below += starts[k][i - 1], ended += ends[k][i - 1];
-            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins), below,
-                           0, n - ended);
+        for (i = 1; i < bins->count; ++i) {
+            below += bins->starts[k][i - 1], ended += bins->ends[k][i - 1];
+            kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins->count),
+                           below, 0, n - ended);
         }
     }
 }
@@ -1685,32 +1709,35 @@ static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
    split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When
    sides is not NULL it gets each reference's side, and index[c] where it went in child c (or
    KDRT_INVALID_ID). */
-static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
-                                    const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
-                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
-                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
+static void kdrt__count_sides(const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
+                              uint32_t room[2])
 {
-    uint32_t room[2] = {0, 0}, r, c;
+    uint32_t r;
+    room[0] = room[1] = 0;
     for (r = 0; r < n; ++r) {
         unsigned side = kdrt__ref_side(&refs[r], plane);
         room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
     }
-    for (c = 0; c < 2; ++c) {
-        /* One to spare: a reference is written to both sides and kept on its own. */
-        size_t bytes = ((size_t)room[c] + 1) * sizeof(kdrt__ref);
-        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, bytes)
-                                       : kdrt__alloc(b->allocator, bytes));
-        if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
-        count[c] = 0;
-    }
+}
+
+/* refs[0..n) to the children, written from out[c] on (room for what kdrt__count_sides counted,
+   and one more); count[c] gets how many went to child c. */
+static void kdrt__split_range(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
+                              const kdrt__plane *plane, float child_lo[2][3],
+                              float child_hi[2][3], kdrt__ref *out[2], uint32_t count[2],
+                              unsigned char *sides, uint32_t *index[2])
+{
+    uint32_t r, c;
+    count[0] = count[1] = 0;
     for (r = 0; r < n; ++r) {
         unsigned side = kdrt__ref_side(&refs[r], plane), into = side;
         float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
         if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) {
-            /* Most references: copied to both, kept where they lie, without a branch. */
+            /* Most references: copied to both, kept where they lie, without a branch (the spare
+               slot takes the write past the last kept one). */
             const uint32_t keep_below = side & KDRT__SIDE_BELOW, keep_above = side >> 1;
-            child[0][count[0]] = refs[r], child[1][count[1]] = refs[r];
+            out[0][count[0]] = refs[r], out[1][count[1]] = refs[r];
             if (sides) {
                 index[0][r] = keep_below ? count[0] : KDRT_INVALID_ID;
                 index[1][r] = keep_above ? count[1] : KDRT_INVALID_ID;
@@ -1728,14 +1755,40 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
             hi[0][plane->axis] = lo[1][plane->axis] = plane->pos;
         }
         for (c = 0; c < 2; ++c) {
-            kdrt__ref *out = &child[c][count[c]];
+            kdrt__ref *o = &out[c][count[c]];
             if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
-            memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
-            out->tri = refs[r].tri;
+            memcpy(o->lo, lo[c], sizeof o->lo), memcpy(o->hi, hi[c], sizeof o->hi);
+            o->tri = refs[r].tri;
             ++count[c];
         }
     }
+}
+
+/* Two arrays for the children's references, room[c] and one to spare each, from the arena or,
+   with none, the allocator. */
+static kdrt_result kdrt__child_arrays(const kdrt__builder *b, kdrt__arena *arena,
+                                      const uint32_t room[2], kdrt__ref *child[2])
+{
+    int c;
+    for (c = 0; c < 2; ++c) {
+        size_t bytes = ((size_t)room[c] + 1) * sizeof(kdrt__ref);
+        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, bytes)
+                                       : kdrt__alloc(b->allocator, bytes));
+        if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
+    }
+    return KDRT_SUCCESS;
+}
+
+static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
+                                    const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
+                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
+                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
+{
+    uint32_t room[2];
+    kdrt__count_sides(refs, n, plane, room);
+    if (kdrt__child_arrays(b, arena, room, child) != KDRT_SUCCESS) return KDRT_ERROR_OUT_OF_MEMORY;
+    kdrt__split_range(b, refs, n, plane, child_lo, child_hi, child, count, sides, index);
     return KDRT_SUCCESS;
 }
 
@@ -1774,15 +1827,70 @@ static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events,
     }
 }
 
+/* A large node at the top of a parallel build is binned in KDRT__CHUNKS chunks of its references,
+   tasks on the scheduler: the chunks' counts add up to the same bins on any scheduler, or none.
+   (Splitting the references in chunks too was slower on 2 cores: bench/README.md.) */
+#define KDRT__CHUNKS 16u
+#define KDRT__CHUNK_MIN_REFS 16384u /* smaller nodes: one thread */
+
+typedef struct kdrt__chunked {
+    const kdrt__builder *b;
+    const kdrt__ref *refs;
+    uint32_t n;
+    kdrt__bins *bins; /* KDRT__CHUNKS of them */
+} kdrt__chunked;
+
+static uint32_t kdrt__chunk_start(uint32_t n, uint32_t i)
+{
+    return (uint32_t)((uint64_t)n * i / KDRT__CHUNKS);
+}
+
+static void kdrt__bin_chunk(void *data, uint32_t i)
+{
+    kdrt__chunked *c = (kdrt__chunked *)data;
+    uint32_t begin = kdrt__chunk_start(c->n, i), end = kdrt__chunk_start(c->n, i + 1u);
+    kdrt__bin_refs(c->refs + begin, end - begin, &c->bins[i]);
+}
+
+/* refs[0..n) binned in chunks on the scheduler, their counts summed into *out (initialised). */
+static kdrt_result kdrt__bin_refs_chunked(const kdrt__builder *b, const kdrt_scheduler *scheduler,
+                                          const kdrt__ref *refs, uint32_t n, kdrt__bins *out)
+{
+    kdrt__chunked c;
+    uint32_t i, j;
+    int k;
+    memset(&c, 0, sizeof c);
+    c.b = b, c.refs = refs, c.n = n;
+    c.bins = (kdrt__bins *)kdrt__alloc(b->allocator, KDRT__CHUNKS * sizeof(kdrt__bins));
+    if (!c.bins) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < KDRT__CHUNKS; ++i) {
+        c.bins[i].count = out->count;
+        for (k = 0; k < 3; ++k) {
+            c.bins[i].lo[k] = out->lo[k], c.bins[i].scale[k] = out->scale[k];
+            memset(c.bins[i].starts[k], 0, out->count * sizeof(uint32_t));
+            memset(c.bins[i].ends[k], 0, out->count * sizeof(uint32_t));
+        }
+    }
+    scheduler->run(scheduler->user, kdrt__bin_chunk, &c, KDRT__CHUNKS);
+    for (i = 0; i < KDRT__CHUNKS; ++i)
+        for (k = 0; k < 3; ++k)
+            for (j = 0; j < out->count; ++j)
+                out->starts[k][j] += c.bins[i].starts[k][j], out->ends[k][j] += c.bins[i].ends[k][j];
+    kdrt__free(b->allocator, c.bins);
+    return KDRT_SUCCESS;
+}
+
 /* The node's split, or axis -1 for a leaf: at most max_leaf_size triangles, at max_depth, or no
    plane within the budget cheaper than testing all n (cost-based termination). With events (the
    exact region) every candidate is tried; without, the bins choose, and where they find nothing
    worth a split every candidate is tried before the node is made a leaf. */
 static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena,
-                                      const kdrt__ref *refs, uint32_t n, const kdrt__events *events,
-                                      const float lo[3], const float hi[3], uint32_t depth,
-                                      uint32_t budget, kdrt__plane *best)
+                                      const kdrt_scheduler *scheduler, const kdrt__ref *refs,
+                                      uint32_t n, const kdrt__events *events, const float lo[3],
+                                      const float hi[3], uint32_t depth, uint32_t budget,
+                                      kdrt__plane *best)
 {
+    kdrt__bins bins;
     double area = kdrt__half_area(lo, hi), leaf_cost = (double)b->sah_isect * kdrt__leaf_blocks(n);
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
     if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0)) return KDRT_SUCCESS;
@@ -1790,8 +1898,16 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         kdrt__sweep_axes(b, events, n, lo, hi, 1.0 / area, budget, best);
     } else {
         /* At the parallel top, HIGH sorts a node's events for it alone: every candidate still. */
-        if (b->exact_max < n || n > KDRT__EVENT_REF_MASK)
-            kdrt__binned_plane(b, refs, n, lo, hi, 1.0 / area, budget, best);
+        if (b->exact_max < n || n > KDRT__EVENT_REF_MASK) {
+            kdrt__bins_init(b, lo, hi, &bins);
+            if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
+                if (kdrt__bin_refs_chunked(b, scheduler, refs, n, &bins) != KDRT_SUCCESS)
+                    return KDRT_ERROR_OUT_OF_MEMORY;
+            } else {
+                kdrt__bin_refs(refs, n, &bins);
+            }
+            kdrt__bins_plane(b, &bins, n, lo, hi, 1.0 / area, budget, best);
+        }
         if (!(best->cost < leaf_cost) && b->exact_fallback && n <= KDRT__EVENT_REF_MASK) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
@@ -1895,7 +2011,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
                           b->node_count + 1, sizeof(kdrt__node));
     if (r == KDRT_SUCCESS) {
         node = b->node_count++;
-        r = kdrt__choose_plane(b, arena, refs, n, events, lo, hi, depth, budget, &plane);
+        r = kdrt__choose_plane(b, arena, NULL, refs, n, events, lo, hi, depth, budget, &plane);
     }
     if (r == KDRT_SUCCESS && plane.axis >= 0) {
         kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
@@ -1977,9 +2093,9 @@ static void kdrt__run_task(void *data, uint32_t index)
 }
 
 /* The top of the tree: splits large nodes and hands the rest to tasks; takes ownership of refs. */
-static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__ref *refs,
-                                 uint32_t n, const float lo[3], const float hi[3], uint32_t depth,
-                                 uint32_t budget)
+static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *scheduler,
+                                 kdrt__top *top, kdrt__ref *refs, uint32_t n, const float lo[3],
+                                 const float hi[3], uint32_t depth, uint32_t budget)
 {
     kdrt__ref *child[2] = {NULL, NULL};
     uint32_t node = top->node_count++, count[2], child_budget[2];
@@ -1991,7 +2107,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
     plane.axis = -1;
     if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH) {
         kdrt__arena_init(&arena, b->allocator);
-        r = kdrt__choose_plane(b, &arena, refs, n, NULL, lo, hi, depth, budget, &plane);
+        r = kdrt__choose_plane(b, &arena, scheduler, refs, n, NULL, lo, hi, depth, budget, &plane);
         kdrt__arena_free(&arena);
         if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
     }
@@ -2017,11 +2133,11 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, kdrt__top *top, kdrt__r
         return KDRT_SUCCESS;
     }
     kdrt__free(b->allocator, refs);
-    r = kdrt__sah_top(b, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1,
+    r = kdrt__sah_top(b, scheduler, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1,
                       child_budget[0]);
     top->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, top->node_count);
     if (r == KDRT_SUCCESS)
-        return kdrt__sah_top(b, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1,
+        return kdrt__sah_top(b, scheduler, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1,
                              child_budget[1]);
     kdrt__free(b->allocator, child[1]);
     return r;
@@ -2068,7 +2184,7 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
     if (!top) { kdrt__free(b->allocator, refs); return KDRT_ERROR_OUT_OF_MEMORY; }
     if (budget > 0xFFFFFFFFu) budget = 0xFFFFFFFFu; /* the most references a tree can address */
     top->node_count = top->task_count = 0;
-    r = kdrt__sah_top(b, top, refs, n, lo, hi, 0, (uint32_t)budget);
+    r = kdrt__sah_top(b, scheduler, top, refs, n, lo, hi, 0, (uint32_t)budget);
     if (r == KDRT_SUCCESS) {
         /* Largest first, so that no thread is left with a big task at the end (the order
            changes only the timing: each task's subtree goes where its index says). */

@@ -70,8 +70,11 @@ TEST_CASE("build: the parallel SAH build gives the same tree on any scheduler", 
 
                 ReverseScheduler reverse;
                 kt::TreePtr reversed = build_sah(scene.mesh, builder, leaf, reverse.hooks());
-                CHECK(reverse.runs == 1);
-                if (scene.mesh.triangle_count() > 20000) CHECK(reverse.tasks > 2);  // the test means something
+                if (scene.mesh.triangle_count() > 20000) {
+                    CHECK(reverse.tasks > 2);  // the test means something: the last run, the subtrees
+                    // Before it, the large top nodes binned in chunks (not HIGH's: it sorts).
+                    if (builder.quality != KDRT_BUILD_QUALITY_HIGH) CHECK(reverse.runs > 1);
+                }
                 check_same_tree(serial.get(), reversed.get(), rays);
 
                 for (unsigned threads : {1u, 2u, 3u, 8u}) {
