@@ -187,8 +187,9 @@
      leaves round it instead of references without end.
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread, its nodes of 16384 references or more binned in 16 chunks that
-     are tasks on options.scheduler; the subtrees below, at most 64, are independent tasks too,
-     then joined in depth-first order. The cut and the chunks depend only on the input, so the
+     are tasks on options.scheduler (HIGH: their events sorted an axis a task); the subtrees
+     below, at most 64, are independent tasks too, then joined in depth-first order. Checking
+     the triangles before and packing the leaf blocks after are tasks in 16 chunks as well. The cut and the chunks depend only on the input, so the
      tree is the same for any scheduler, thread count or task order, and without one. The
      scheduler's run() is called several times a build: a scheduler should keep its threads.
      max_leaf_size = 0 means no tree: every query tests every triangle, through the same API.
@@ -1619,6 +1620,41 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
     return KDRT_SUCCESS;
 }
 
+/* kdrt__sorted_events with each axis a task on the scheduler, in an arena of its own: for HIGH's
+   exact sweeps at the top of a parallel build. The caller frees the arenas. */
+typedef struct kdrt__axis_sort {
+    const kdrt__ref *refs;
+    uint32_t n;
+    kdrt__arena *arenas; /* 3 */
+    kdrt__events *out;
+    kdrt_result result[3];
+} kdrt__axis_sort;
+
+static void kdrt__sort_axis(void *data, uint32_t k)
+{
+    kdrt__axis_sort *job = (kdrt__axis_sort *)data;
+    uint64_t *events =
+        (uint64_t *)kdrt__arena_alloc(&job->arenas[k], (2 * (size_t)job->n + 1) * sizeof(uint64_t));
+    size_t count = 0;
+    uint32_t r;
+    job->out->axis[k] = events, job->out->count[k] = 0;
+    job->result[k] = KDRT_ERROR_OUT_OF_MEMORY;
+    if (!events) return;
+    for (r = 0; r < job->n; ++r) count += kdrt__push_events(&job->refs[r], r, (int)k, events + count);
+    job->out->count[k] = count;
+    job->result[k] = kdrt__sort_keys(&job->arenas[k], events, count);
+}
+
+static kdrt_result kdrt__sorted_events_parallel(const kdrt_scheduler *scheduler, kdrt__arena arenas[3],
+                                                const kdrt__ref *refs, uint32_t n, kdrt__events *out)
+{
+    kdrt__axis_sort job;
+    job.refs = refs, job.n = n, job.arenas = arenas, job.out = out;
+    scheduler->run(scheduler->user, kdrt__sort_axis, &job, 3);
+    return job.result[0] != KDRT_SUCCESS ? job.result[0]
+           : job.result[1] != KDRT_SUCCESS ? job.result[1] : job.result[2];
+}
+
 /* Binned sweep for large nodes: each axis cut into KDRT_SAH_BINS equal bins, a reference counted
    in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
 
@@ -1832,6 +1868,7 @@ static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events,
    (Splitting the references in chunks too was slower on 2 cores: bench/README.md.) */
 #define KDRT__CHUNKS 16u
 #define KDRT__CHUNK_MIN_REFS 16384u /* smaller nodes: one thread */
+#define KDRT__PACK_CHUNK_MIN_BLOCKS 4096u /* fewer blocks are packed on one thread */
 
 typedef struct kdrt__chunked {
     const kdrt__builder *b;
@@ -1911,10 +1948,22 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         if (!(best->cost < leaf_cost) && b->exact_fallback && n <= KDRT__EVENT_REF_MASK) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
-            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
-                return KDRT_ERROR_OUT_OF_MEMORY;
-            kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
-            kdrt__arena_release(arena, mark);
+            if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
+                /* Each axis sorted on its own thread. */
+                kdrt__arena arenas[3];
+                kdrt_result r;
+                int k;
+                for (k = 0; k < 3; ++k) kdrt__arena_init(&arenas[k], b->allocator);
+                r = kdrt__sorted_events_parallel(scheduler, arenas, refs, n, &all);
+                if (r == KDRT_SUCCESS) kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
+                for (k = 0; k < 3; ++k) kdrt__arena_free(&arenas[k]);
+                if (r != KDRT_SUCCESS) return r;
+            } else {
+                if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
+                    return KDRT_ERROR_OUT_OF_MEMORY;
+                kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
+                kdrt__arena_release(arena, mark);
+            }
         }
     }
     if (!(best->cost < leaf_cost)) best->axis = -1;
@@ -2226,16 +2275,65 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
 /* Lays the leaves' triangles out in blocks once a builder has made the nodes and refs: each leaf,
    in node order (depth first), gets ceil(count / 8) consecutive blocks of its triangles' corners,
    and its node's u.first becomes its first block. block_refs numbers the references the same
-   way, leaf by leaf, for the inspection API. The floats are the caller's, so no answer changes. */
-static kdrt_result kdrt__pack_blocks(const kdrt_allocator *a, const kdrt_triangles *m,
-                                     kdrt__node *nodes, uint32_t node_count, const uint32_t *refs,
-                                     kdrt_tree *tree)
+   way, leaf by leaf, for the inspection API. The floats are the caller's, so no answer changes.
+   With a scheduler, the nodes are packed in KDRT__CHUNKS ranges as tasks, each range's first
+   block and reference counted beforehand: the same blocks either way. */
+typedef struct kdrt__packing {
+    const kdrt_triangles *mesh;
+    kdrt__node *nodes;
+    const uint32_t *refs;
+    kdrt_tree *tree;
+    uint32_t node_start[KDRT__CHUNKS + 1], block_start[KDRT__CHUNKS], ref_start[KDRT__CHUNKS];
+} kdrt__packing;
+
+static void kdrt__pack_range(void *data, uint32_t chunk)
 {
-    uint32_t i, count = 0, b = 0, ref = 0;
+    kdrt__packing *p = (kdrt__packing *)data;
+    kdrt_tree *tree = p->tree;
+    uint32_t i, b = p->block_start[chunk], ref = p->ref_start[chunk];
+    for (i = p->node_start[chunk]; i < p->node_start[chunk + 1]; ++i) {
+        kdrt__node *n = &p->nodes[i];
+        uint32_t first, total, k, lane;
+        if (!kdrt__node_is_leaf(n)) continue;
+        first = n->u.first, total = kdrt__node_count(n);
+        n->u.first = b;
+        for (k = 0; k < total; k += KDRT__LANES, ++b) {
+            kdrt__block *block = &tree->blocks[b];
+            tree->block_refs[b] = ref + k;
+            for (lane = 0; lane < KDRT__LANES; ++lane) {
+                const uint32_t tri = p->refs[first + (k + lane < total ? k + lane : total - 1u)];
+                float c[3][3];
+                int corner, axis;
+                kdrt__load_triangle(p->mesh, tri, c);
+                for (corner = 0; corner < 3; ++corner)
+                    for (axis = 0; axis < 3; ++axis)
+                        block->corner[3 * corner + axis][lane] = c[corner][axis];
+                block->id[lane] = tri;
+            }
+        }
+        ref += total;
+    }
+}
+
+static kdrt_result kdrt__pack_blocks(const kdrt_allocator *a, const kdrt_scheduler *scheduler,
+                                     const kdrt_triangles *m, kdrt__node *nodes,
+                                     uint32_t node_count, const uint32_t *refs, kdrt_tree *tree)
+{
+    kdrt__packing p;
+    uint32_t i, chunk = 0, count = 0, ref = 0;
     size_t bytes;
-    for (i = 0; i < node_count; ++i)
-        if (kdrt__node_is_leaf(&nodes[i]))
+    p.mesh = m, p.nodes = nodes, p.refs = refs, p.tree = tree;
+    for (i = 0; i <= KDRT__CHUNKS; ++i) p.node_start[i] = kdrt__chunk_start(node_count, i);
+    for (i = 0; i < node_count; ++i) {
+        /* Where each range starts: the blocks and references of the leaves before it. */
+        for (; chunk < KDRT__CHUNKS && p.node_start[chunk] == i; ++chunk)
+            p.block_start[chunk] = count, p.ref_start[chunk] = ref;
+        if (kdrt__node_is_leaf(&nodes[i])) {
             count += (kdrt__node_count(&nodes[i]) + KDRT__LANES - 1u) / KDRT__LANES;
+            ref += kdrt__node_count(&nodes[i]);
+        }
+    }
+    for (; chunk < KDRT__CHUNKS; ++chunk) p.block_start[chunk] = count, p.ref_start[chunk] = ref;
     tree->stats.blocks = count; /* at most the references, so no overflow */
     if (count == 0) {
         for (i = 0; i < node_count; ++i)
@@ -2250,28 +2348,10 @@ static kdrt_result kdrt__pack_blocks(const kdrt_allocator *a, const kdrt_triangl
     /* 64-byte aligned: a block is five whole cache lines. */
     tree->blocks = (kdrt__block *)((char *)tree->block_memory +
                                    ((64u - (uintptr_t)tree->block_memory % 64u) % 64u));
-    for (i = 0; i < node_count; ++i) {
-        kdrt__node *n = &nodes[i];
-        uint32_t first, total, k, lane;
-        if (!kdrt__node_is_leaf(n)) continue;
-        first = n->u.first, total = kdrt__node_count(n);
-        n->u.first = b;
-        for (k = 0; k < total; k += KDRT__LANES, ++b) {
-            kdrt__block *block = &tree->blocks[b];
-            tree->block_refs[b] = ref + k;
-            for (lane = 0; lane < KDRT__LANES; ++lane) {
-                const uint32_t tri = refs[first + (k + lane < total ? k + lane : total - 1u)];
-                float p[3][3];
-                int c, axis;
-                kdrt__load_triangle(m, tri, p);
-                for (c = 0; c < 3; ++c)
-                    for (axis = 0; axis < 3; ++axis) block->corner[3 * c + axis][lane] = p[c][axis];
-                block->id[lane] = tri;
-            }
-        }
-        ref += total;
-    }
-    KDRT_ASSERT(b == count);
+    if (scheduler && scheduler->run && count >= KDRT__PACK_CHUNK_MIN_BLOCKS)
+        scheduler->run(scheduler->user, kdrt__pack_range, &p, KDRT__CHUNKS);
+    else
+        for (i = 0; i < KDRT__CHUNKS; ++i) kdrt__pack_range(&p, i);
     return KDRT_SUCCESS;
 }
 
@@ -2397,21 +2477,72 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_trian
 /* Triangle preparation. Every triangle is checked: an invalid one fails the build, or under
    KDRT_BUILD_SKIP_INVALID_TRIANGLES is skipped, and a zero-area one is left out. The others get
    their box and centroid in b (by the caller's index), grow *bounds and are listed, in order, in
-   (*valid)[0 .. *n). All of it is one allocation, *scratch, for the caller to free. */
+   (*valid)[0 .. *n). All of it is one allocation, *scratch, for the caller to free. With a
+   scheduler the triangles are checked in KDRT__CHUNKS ranges as tasks (each triangle's verdict in
+   b->side, each range's box), then listed in order: the same list and report either way. */
+#define KDRT__TRIANGLE_VALID 0u
+#define KDRT__TRIANGLE_DEGENERATE 1u
+#define KDRT__TRIANGLE_INVALID 2u
+
+typedef struct kdrt__preparing {
+    kdrt__builder *b;
+    const kdrt_triangles *m;
+    float *boxes; /* b->lo, b->hi and b->centroid, writable */
+    kdrt_aabb bounds[KDRT__CHUNKS];
+    kdrt_result first_error[KDRT__CHUNKS]; /* each range's first invalid triangle's error */
+} kdrt__preparing;
+
+static void kdrt__prepare_range(void *data, uint32_t chunk)
+{
+    kdrt__preparing *p = (kdrt__preparing *)data;
+    const size_t count = p->m->triangle_count;
+    uint32_t tri, end = kdrt__chunk_start(p->m->triangle_count, chunk + 1u);
+    float c[3][3];
+    int a, k;
+    p->bounds[chunk] = kdrt_aabb_empty();
+    p->first_error[chunk] = KDRT_SUCCESS;
+    for (tri = kdrt__chunk_start(p->m->triangle_count, chunk); tri < end; ++tri) {
+        float *lo = p->boxes + 3 * (size_t)tri, *hi = lo + 3 * count, *centroid = hi + 3 * count;
+        kdrt_result r = kdrt__check_triangle(p->m, tri, c);
+        if (r != KDRT_SUCCESS) {
+            if (p->first_error[chunk] == KDRT_SUCCESS) p->first_error[chunk] = r;
+            p->b->side[tri] = KDRT__TRIANGLE_INVALID;
+            continue;
+        }
+        if (kdrt__zero_area(c)) {
+            p->b->side[tri] = KDRT__TRIANGLE_DEGENERATE;
+            continue;
+        }
+        p->b->side[tri] = KDRT__TRIANGLE_VALID;
+        for (a = 0; a < 3; ++a) {
+            lo[a] = hi[a] = c[0][a];
+            for (k = 1; k < 3; ++k) {
+                if (c[k][a] < lo[a]) lo[a] = c[k][a];
+                if (c[k][a] > hi[a]) hi[a] = c[k][a];
+            }
+            /* Rounding can put the mean a hair outside the corners (a triangle in the plane
+               x = 0.1 would get a centroid off that plane); keep it within them. */
+            centroid[a] = (c[0][a] + c[1][a] + c[2][a]) * (1.0f / 3.0f);
+            centroid[a] = centroid[a] < lo[a] ? lo[a] : (centroid[a] > hi[a] ? hi[a] : centroid[a]);
+        }
+        kdrt_aabb_grow(&p->bounds[chunk], lo);
+        kdrt_aabb_grow(&p->bounds[chunk], hi);
+    }
+}
+
 static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangles *m,
-                                           uint32_t flags, kdrt_aabb *bounds, float **scratch,
-                                           uint32_t **valid, uint32_t *n, kdrt_build_report *report)
+                                           uint32_t flags, const kdrt_scheduler *scheduler,
+                                           kdrt_aabb *bounds, float **scratch, uint32_t **valid,
+                                           uint32_t *n, kdrt_build_report *report)
 {
     const size_t count = m->triangle_count;
-    uint32_t tri, skipped = 0, degenerate = 0;
-    float p[3][3];
+    kdrt__preparing p;
+    uint32_t tri, skipped = 0, degenerate = 0, i;
     size_t bytes;
-    kdrt_result r;
-    int a, k;
 
     *n = 0;
     /* Per triangle: box lo[3], hi[3] and centroid[3], then the list of usable triangles, then
-       the builder's side marks. */
+       the builder's side marks (first each triangle's verdict). */
     if (!kdrt__mul_size(count, 9 * sizeof(float) + sizeof(uint32_t) + 1, &bytes))
         return KDRT_ERROR_SIZE_OVERFLOW;
     *scratch = (float *)kdrt__alloc(b->allocator, bytes);
@@ -2422,34 +2553,31 @@ static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangle
     b->centroid = *scratch + 6 * count;
     b->side = (unsigned char *)(*valid + count);
 
+    p.b = b, p.m = m, p.boxes = *scratch;
+    if (scheduler && scheduler->run && count >= KDRT__CHUNK_MIN_REFS)
+        scheduler->run(scheduler->user, kdrt__prepare_range, &p, KDRT__CHUNKS);
+    else
+        for (i = 0; i < KDRT__CHUNKS; ++i) kdrt__prepare_range(&p, i);
+    for (i = 0; i < KDRT__CHUNKS; ++i)
+        if (p.bounds[i].min[0] <= p.bounds[i].max[0]) { /* not empty */
+            kdrt_aabb_grow(bounds, p.bounds[i].min);
+            kdrt_aabb_grow(bounds, p.bounds[i].max);
+        }
     for (tri = 0; tri < m->triangle_count; ++tri) {
-        float *lo = *scratch + 3 * (size_t)tri, *hi = lo + 3 * count, *c = hi + 3 * count;
-        r = kdrt__check_triangle(m, tri, p);
-        if (r != KDRT_SUCCESS) {
+        if (b->side[tri] == KDRT__TRIANGLE_INVALID) {
             if (report && report->invalid_triangle == KDRT_INVALID_ID)
                 report->invalid_triangle = tri;
-            if (!(flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) return r;
-            ++skipped;
-            continue;
-        }
-        if (kdrt__zero_area(p)) {
-            ++degenerate;
-            continue;
-        }
-        for (a = 0; a < 3; ++a) {
-            lo[a] = hi[a] = p[0][a];
-            for (k = 1; k < 3; ++k) {
-                if (p[k][a] < lo[a]) lo[a] = p[k][a];
-                if (p[k][a] > hi[a]) hi[a] = p[k][a];
+            if (!(flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES)) {
+                /* The first invalid triangle's error: the first range that has one. */
+                for (i = 0; p.first_error[i] == KDRT_SUCCESS; ++i) continue;
+                return p.first_error[i];
             }
-            /* Rounding can put the mean a hair outside the corners (a triangle in the plane
-               x = 0.1 would get a centroid off that plane); keep it within them. */
-            c[a] = (p[0][a] + p[1][a] + p[2][a]) * (1.0f / 3.0f);
-            c[a] = c[a] < lo[a] ? lo[a] : (c[a] > hi[a] ? hi[a] : c[a]);
+            ++skipped;
+        } else if (b->side[tri] == KDRT__TRIANGLE_DEGENERATE) {
+            ++degenerate;
+        } else {
+            (*valid)[(*n)++] = tri;
         }
-        kdrt_aabb_grow(bounds, lo);
-        kdrt_aabb_grow(bounds, hi);
-        (*valid)[(*n)++] = tri;
     }
     if (report) report->skipped_triangles = skipped, report->degenerate_triangles = degenerate;
     return KDRT_SUCCESS;
@@ -2558,10 +2686,12 @@ KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_buil
     tree = kdrt__tree_new(&opt, &m);
     if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
 
-    r = kdrt__prepare_triangles(&b, &m, opt.flags, &tree->bounds, &scratch, &valid, &n, report);
+    r = kdrt__prepare_triangles(&b, &m, opt.flags, &opt.scheduler, &tree->bounds, &scratch, &valid,
+                                &n, report);
     if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, &opt, valid, n, &tree->bounds);
     if (r == KDRT_SUCCESS)
-        r = kdrt__pack_blocks(&opt.allocator, &m, b.nodes, b.node_count, b.refs, tree);
+        r = kdrt__pack_blocks(&opt.allocator, &opt.scheduler, &m, b.nodes, b.node_count, b.refs,
+                              tree);
     if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n);
     kdrt__free(&opt.allocator, scratch);
     kdrt__free(&opt.allocator, b.refs); /* the blocks hold the triangles now */

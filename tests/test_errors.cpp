@@ -743,8 +743,9 @@ namespace {
 // tree and nothing left allocated. The build's last two allocations trim the node and reference
 // arrays to size, which the builder may skip when they fail (the tree keeps its larger arrays);
 // then the build succeeds and the tree must answer exactly as a normally built one.
+// Fails each allocation of a build in turn (the first `first` of them, if not 0).
 void fail_each_allocation(const kdrt_triangles &view, kdrt_build_options o, kdrt_result expected_result,
-                          kdrt_result other, const std::vector<kdrt_ray> &rays) {
+                          kdrt_result other, const std::vector<kdrt_ray> &rays, size_t first = 0) {
     CountingAllocator counter;
     UseCounter use(counter);
     o.allocator = counter.hooks();
@@ -762,7 +763,7 @@ void fail_each_allocation(const kdrt_triangles &view, kdrt_build_options o, kdrt
     REQUIRE(counter.live_blocks == 0);
 
     size_t survived = 0, mismatched = 0;
-    for (size_t k = 1; k <= total; ++k) {
+    for (size_t k = 1; k <= (first ? std::min(first, total) : total); ++k) {
         counter.reset_counts();
         counter.fail_at = k;
         kdrt_result r = try_build(view, o, &tree, &report);
@@ -839,6 +840,20 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
             };
             INFO(builder.name << " in tasks");
             fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+        }
+    }
+    {  // large enough for the top's nodes to be binned (HIGH: sorted) and the triangles prepared and
+       // packed in chunks on the scheduler: the first allocations, where those happen
+        common::Mesh soup = kt::random_soup(20000, 20);
+        kdrt_triangles sv = soup.view();
+        for (const kt::Builder &builder : kt::kSahBuilders) {
+            kdrt_build_options o = options_with_leaf(4);
+            builder.apply(o);
+            o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
+                for (uint32_t i = count; i-- > 0;) task(data, i);
+            };
+            INFO(builder.name << " in tasks, chunked top");
+            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays, 40);
         }
     }
 }
