@@ -22,14 +22,24 @@ namespace {
 // seed gives the rays of the CSVs in bench/results.
 common::Rng seeded(uint32_t seed) { return common::Rng::from_state(0x243F6A8885A308D3ull ^ (uint64_t(seed) * 0x9E3779B97F4A7C15ull)); }
 
+// The comma-separated items of an option's value, empty ones included ("a,,b" has three), which
+// no option takes.
+std::vector<std::string> list_items(const std::string &text) {
+    std::vector<std::string> items;
+    size_t start = 0;
+    while (true) {
+        size_t comma = text.find(',', start);
+        items.push_back(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+        if (comma == std::string::npos) return items;
+        start = comma + 1;
+    }
+}
+
 // "KT:KI:EB,KT:KI:EB,...": K_T and K_I finite and above 0, EB in (0, 1). kdrt reads a zero cost
 // or bonus as "use the default", so 0 is refused rather than silently replaced.
 bool parse_sah_costs(const std::string &text, std::vector<SahCosts> &out, std::string &error) {
     out.clear();
-    size_t start = 0;
-    while (true) {
-        size_t comma = text.find(',', start);
-        std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    for (const std::string &item : list_items(text)) {
         float v[3];
         size_t field_start = 0;
         int fields = 0;
@@ -58,8 +68,6 @@ bool parse_sah_costs(const std::string &text, std::vector<SahCosts> &out, std::s
         SahCosts c;
         c.traversal = v[0], c.intersection = v[1], c.empty_bonus = v[2];
         out.push_back(c);
-        if (comma == std::string::npos) break;
-        start = comma + 1;
     }
     return true;
 }
@@ -144,7 +152,7 @@ std::string usage() {
            "Meshes: OFF, OBJ, PLY, STL, glTF files, or folders of them. Default: the original's\n"
            "meshes in ../shared/meshes/seed when present, else generated ones. hostile:KIND:N\n"
            "generates N triangles that push a kd-tree builder to its worst, KIND one of fan,\n"
-           "cone, slivers, overlapping, identical.\n"
+           "cone, slivers, overlapping, identical (or soup: small random triangles, a big input).\n"
            "\n"
            "  --size WxH          frame size (default 800x800; 400x400 with --accuracy)\n"
            "  --threads N         tracing threads (default 1)\n"
@@ -229,18 +237,13 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         } else if (arg == "--intersector") {
             if (!value(v)) return false;
             out.intersectors.clear();
-            size_t start = 0;
-            while (true) {
-                size_t comma = v.find(',', start);
-                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+            for (const std::string &item : list_items(v)) {
                 if (item == "watertight") out.intersectors.push_back(KDRT_INTERSECTOR_WATERTIGHT);
                 else if (item == "fast") out.intersectors.push_back(KDRT_INTERSECTOR_FAST);
                 else {
                     error = "--intersector wants watertight, fast or both separated by a comma, got '" + v + "'";
                     return false;
                 }
-                if (comma == std::string::npos) break;
-                start = comma + 1;
             }
         } else if (arg == "--hard-rays") {
             if (!value(v)) return false;
@@ -284,42 +287,29 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         } else if (arg == "--leaf-sizes") {
             if (!value(v)) return false;
             out.leaf_sizes.clear();
-            size_t start = 0;
-            while (start <= v.size()) {
-                size_t comma = v.find(',', start);
-                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+            for (const std::string &item : list_items(v)) {
                 if (!common::parse_count(item, KDRT_MAX_TRIANGLES, n)) {
                     error = "--leaf-sizes wants whole numbers separated by commas, got '" + v + "'";
                     return false;
                 }
                 out.leaf_sizes.push_back(uint32_t(n));
-                if (comma == std::string::npos) break;
-                start = comma + 1;
             }
         } else if (arg == "--builder") {
             if (!value(v)) return false;
             out.builders.clear();
-            size_t start = 0;
-            while (true) {
-                size_t comma = v.find(',', start);
-                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+            for (const std::string &item : list_items(v)) {
                 if (item != "median" && item != "sah") {
                     error = "--builder wants median, sah or both separated by a comma, got '" + v + "'";
                     return false;
                 }
                 out.builders.push_back(item);
-                if (comma == std::string::npos) break;
-                start = comma + 1;
             }
         } else if (arg == "--sah-costs") {
             if (!value(v) || !parse_sah_costs(v, out.sah_costs, error)) return false;
         } else if (arg == "--quality") {
             if (!value(v)) return false;
             out.qualities.clear();
-            size_t start = 0;
-            while (true) {
-                size_t comma = v.find(',', start);
-                std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+            for (const std::string &item : list_items(v)) {
                 if (item == "fast") out.qualities.push_back(KDRT_BUILD_QUALITY_FAST);
                 else if (item == "medium") out.qualities.push_back(KDRT_BUILD_QUALITY_MEDIUM);
                 else if (item == "high") out.qualities.push_back(KDRT_BUILD_QUALITY_HIGH);
@@ -327,8 +317,6 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
                     error = "--quality wants fast, medium or high, separated by commas, got '" + v + "'";
                     return false;
                 }
-                if (comma == std::string::npos) break;
-                start = comma + 1;
             }
         } else if (arg == "--rays") {
             if (!value(v)) return false;

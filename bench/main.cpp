@@ -310,7 +310,7 @@ int run(int argc, char **argv) {
             if (colon == std::string::npos || std::find(kinds.begin(), kinds.end(), kind) == kinds.end() ||
                 !common::parse_count(path.substr(colon + 1), KDRT_MAX_TRIANGLES, triangles) || triangles == 0) {
                 progress.note("kdrt-bench: skipping " + path + ": want hostile:KIND:TRIANGLES, KIND one of fan, cone, "
-                              "slivers, overlapping, identical");
+                              "slivers, overlapping, identical, soup");
                 ++failures;
                 continue;
             }

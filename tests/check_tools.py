@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Tests of examples/render/rmse_vs_time.py (against tests/fake_kdrt_render.py, which has kdrt-render's
-command line) and examples/render/frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed).
+command line), examples/render/frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed)
+and bench/quality_table.py (on small CSVs written here).
 
-usage: tests/check_tools.py [RmseVsTime | FramesToVideo]   (unittest names; default: both)
+usage: tests/check_tools.py [RmseVsTime | FramesToVideo | QualityTable]   (unittest names; default: all)
 """
 import csv
 import math
@@ -16,6 +17,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 TOOLS = HERE.parent / "examples" / "render"
+BENCH = HERE.parent / "bench"
 FAKE = HERE / "fake_kdrt_render.py"
 
 
@@ -168,6 +170,58 @@ class FramesToVideo(unittest.TestCase):
         done = self.tool(self.dir / "none", video)
         self.assertEqual(done.returncode, 1)
         self.assertIn("no first frame", done.stderr)
+
+
+class QualityTable(unittest.TestCase):
+    HEADER = ("Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
+              "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality")
+
+    def setUp(self):
+        self.dir = Path(tempfile.mkdtemp(prefix="kdrt_quality_test_"))
+
+    def tearDown(self):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def csv(self, name, rows):
+        path = self.dir / name
+        path.write_text(self.HEADER + "\n" + "\n".join(rows) + "\n")
+        return path
+
+    @staticmethod
+    def row(builder, quality, build_ms, mrays, threads=1, mismatches=0):
+        kd = builder == "sah"
+        return (f"BALL;{4 if kd else -1};1;{builder};1000;{build_ms};1;{mrays};{'10;5;3;8.00;80000' if kd else ';;;;'};"
+                f"{mismatches};100;{'watertight' if kd else ''};{'500.000' if kd else ''};{'30:20:0.1' if kd else ''};"
+                f"{threads};{quality}")
+
+    def test_levels_beside_embree_medians_and_ratios(self):
+        r = self.row
+        primary = self.csv("p.csv", [r("sah", "fast", 2, 8), r("sah", "fast", 4, 8), r("sah", "fast", 3, 9),
+                                     r("sah", "high", 12, 10), r("embree", "low", 1, 9), r("embree", "medium", 4, 9)])
+        diffuse = self.csv("d.csv", [r("sah", "fast", 3, 4, mismatches=2), r("sah", "high", 12, 5),
+                                     r("embree", "low", 1, 9), r("embree", "medium", 4, 9)])
+        two = self.csv("t.csv", [r("sah", "fast", 2, 1, threads=2), r("sah", "high", 6, 1, threads=2),
+                                 r("embree", "low", 0.5, 1, threads=2), r("embree", "medium", 2, 1, threads=2)])
+        done = run([sys.executable, BENCH / "quality_table.py", "--primary", primary, "--diffuse", diffuse,
+                    "--two-threads", two])
+        self.assertEqual(done.returncode, 0, done.stderr)
+        lines = [line for line in done.stdout.splitlines() if line.startswith("| BALL")]
+        self.assertEqual(len(lines), 2)  # FAST and HIGH: MEDIUM was not measured
+        fast = [c.strip() for c in lines[0].split("|")[1:-1]]
+        # Build: the median of 2, 4, 3, 3 ms; over Embree LOW's 1 and MEDIUM's 4.
+        self.assertEqual(fast[2:6], ["FAST", "3.0 (3.0x LOW, 0.8x MEDIUM)", "2.0 (4.0x LOW, 1.0x MEDIUM)", "1.50x"])
+        self.assertEqual(fast[6:8], ["8.00 (0.80x)", "4.00 (0.80x)"])  # primary median 8 of HIGH's 10
+        self.assertEqual(fast[-1], "2")  # mismatches summed
+        high = [c.strip() for c in lines[1].split("|")[1:-1]]
+        self.assertEqual(high[3], "12.0 (3.0x MEDIUM)")
+        self.assertEqual(high[6], "10.00 (1.00x)")
+
+    def test_a_csv_without_the_quality_column_is_refused(self):
+        old = self.dir / "old.csv"
+        old.write_text(self.HEADER.rsplit(";", 1)[0] + "\n" + self.row("sah", "fast", 1, 1).rsplit(";", 1)[0] + "\n")
+        done = run([sys.executable, BENCH / "quality_table.py", "--primary", old, "--diffuse", old, "--two-threads", old])
+        self.assertNotEqual(done.returncode, 0)
+        self.assertIn("no Quality column", done.stderr)
 
 
 if __name__ == "__main__":

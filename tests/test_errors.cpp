@@ -829,8 +829,10 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
                 fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
             }
     }
-    {  // large enough for the SAH build to cut its top into tasks, run here in reverse order
-        common::Mesh soup = kt::random_soup(9000, 19);
+    // SAH builds at each quality whose tasks run here in reverse order: the first allocations
+    // (or all) of a build of `triangles`.
+    const auto in_tasks = [&rays](uint32_t triangles, uint32_t seed, size_t first) {
+        common::Mesh soup = kt::random_soup(triangles, seed);
         kdrt_triangles sv = soup.view();
         for (const kt::Builder &builder : kt::kSahBuilders) {
             kdrt_build_options o = options_with_leaf(4);
@@ -838,24 +840,14 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
             o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
                 for (uint32_t i = count; i-- > 0;) task(data, i);
             };
-            INFO(builder.name << " in tasks");
-            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays);
+            INFO(builder.name << " in tasks, " << triangles << " triangles");
+            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays, first);
         }
-    }
-    {  // large enough for the top's nodes to be binned (HIGH: sorted) and the triangles prepared and
-       // packed in chunks on the scheduler: the first allocations, where those happen
-        common::Mesh soup = kt::random_soup(20000, 20);
-        kdrt_triangles sv = soup.view();
-        for (const kt::Builder &builder : kt::kSahBuilders) {
-            kdrt_build_options o = options_with_leaf(4);
-            builder.apply(o);
-            o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
-                for (uint32_t i = count; i-- > 0;) task(data, i);
-            };
-            INFO(builder.name << " in tasks, chunked top");
-            fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays, 40);
-        }
-    }
+    };
+    in_tasks(9000, 19, 0);  // large enough for the SAH build to cut its top into tasks
+    // Large enough for the top's nodes to be binned (HIGH: sorted) and the triangles prepared
+    // and packed in chunks on the scheduler: the first 40 allocations, where those happen.
+    in_tasks(20000, 20, 40);
 }
 
 TEST_CASE("alloc: a build failing on a bad triangle frees everything", "[errors][alloc]") {

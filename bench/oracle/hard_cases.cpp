@@ -676,7 +676,7 @@ Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool integer) {
 
 // ---------------------------------------------------------------------------------------------
 
-std::vector<std::string> hostile_kinds() { return {"fan", "cone", "slivers", "overlapping", "identical"}; }
+std::vector<std::string> hostile_kinds() { return {"fan", "cone", "slivers", "overlapping", "identical", "soup"}; }
 
 Mesh hostile_mesh(const std::string &kind, uint32_t triangles, uint64_t seed) {
     Mesh m;
@@ -706,6 +706,14 @@ Mesh hostile_mesh(const std::string &kind, uint32_t triangles, uint64_t seed) {
             for (double &x : o) x = 0.7 * rng.uniform();
             for (auto &corner : p)
                 for (int k = 0; k < 3; ++k) corner[k] = o[k] + 0.3 * rng.uniform();
+        } else if (kind == "soup") {
+            // Small random triangles filling the unit cube, about as many across as there are
+            // triangles to a side: the plainest big input, for build time and memory.
+            const double size = 2.0 / std::cbrt(double(triangles));
+            double o[3];
+            for (double &x : o) x = rng.uniform();
+            for (auto &corner : p)
+                for (int k = 0; k < 3; ++k) corner[k] = o[k] + size * rng.uniform();
         } else if (kind == "identical") {
             const double corners[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0.5}};
             std::memcpy(p, corners, sizeof p);
