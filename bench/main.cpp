@@ -307,7 +307,8 @@ int run(int argc, char **argv) {
             const std::string kind = path.substr(8, colon == std::string::npos ? colon : colon - 8);
             uint32_t triangles = 0;
             const std::vector<std::string> kinds = oracle::hostile_kinds();
-            if (colon == std::string::npos || std::find(kinds.begin(), kinds.end(), kind) == kinds.end() ||
+            if (colon == std::string::npos ||
+                (kind != "soup" && std::find(kinds.begin(), kinds.end(), kind) == kinds.end()) ||
                 !common::parse_count(path.substr(colon + 1), KDRT_MAX_TRIANGLES, triangles) || triangles == 0) {
                 progress.note("kdrt-bench: skipping " + path + ": want hostile:KIND:TRIANGLES, KIND one of fan, cone, "
                               "slivers, overlapping, identical, soup");

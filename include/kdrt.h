@@ -154,8 +154,8 @@
        kept in order from there (Wald & Havran's O(n log n) build): a split renumbers the events
        of the triangles on one side, and only the events of the triangles it cuts are made again
        and sorted.
-     - KDRT_BUILD_QUALITY_HIGH: every candidate at every node, the events sorted at the root
-       (and at each node of a parallel build's top): the lowest SAH cost, the slowest build.
+     - KDRT_BUILD_QUALITY_HIGH: every candidate at every node, the events sorted once at the
+       root and kept in order from there: the lowest SAH cost, the slowest build.
      - KDRT_BUILD_QUALITY_FAST: every node binned, into 32 bins per axis, and never an exact
        sweep; a triangle the plane cuts is not clipped but its box is cut at the plane, so a
        leaf may refer to a triangle that only its box reaches (a test more, never a wrong
@@ -187,7 +187,7 @@
      leaves round it instead of references without end.
      Parallel build: the top of the tree (nodes of more than 4096 triangles, down to depth 6) is
      split on the calling thread, its nodes of 16384 references or more binned in 16 chunks that
-     are tasks on options.scheduler (HIGH: their events sorted an axis a task); the subtrees
+     are tasks on options.scheduler (HIGH: the root's events sorted an axis a task); the subtrees
      below, at most 64, are independent tasks too, then joined in depth-first order. Checking
      the triangles before and packing the leaf blocks after are tasks in 16 chunks as well. The cut and the chunks depend only on the input, so the
      tree is the same for any scheduler, thread count or task order, and without one. The
@@ -1396,6 +1396,20 @@ static void kdrt__arena_free(kdrt__arena *arena)
     arena->current = NULL;
 }
 
+/* ==== work in chunks on the scheduler ==== */
+
+/* Large arrays of the build (the triangles, a large top node's references, the leaves' blocks)
+   are worked on in KDRT__CHUNKS chunks, tasks on options.scheduler; chunks, not threads, so the
+   result is the same on any scheduler. */
+#define KDRT__CHUNKS 16u
+#define KDRT__CHUNK_MIN_REFS 16384u       /* fewer triangles or references: one thread */
+#define KDRT__PACK_CHUNK_MIN_BLOCKS 4096u /* fewer blocks are packed on one thread */
+
+static uint32_t kdrt__chunk_start(uint32_t n, uint32_t i)
+{
+    return (uint32_t)((uint64_t)n * i / KDRT__CHUNKS);
+}
+
 /* ==== events ==== */
 
 /* Events of the exact sweep, one uint64_t each: a float's bits turned so that unsigned order is
@@ -1620,12 +1634,14 @@ static kdrt_result kdrt__sorted_events(kdrt__arena *arena, const kdrt__ref *refs
     return KDRT_SUCCESS;
 }
 
-/* kdrt__sorted_events with each axis a task on the scheduler, in an arena of its own: for HIGH's
-   exact sweeps at the top of a parallel build. The caller frees the arenas. */
+/* Each axis's events of refs[0..n), sorted, in arrays from the allocator (owned by the caller,
+   who frees them with kdrt__free_events, whatever the result): for HIGH's top, whose events go
+   from node to node until the tasks. With a scheduler each axis is a task, sorting in an arena
+   of its own. */
 typedef struct kdrt__axis_sort {
+    const kdrt_allocator *allocator;
     const kdrt__ref *refs;
     uint32_t n;
-    kdrt__arena *arenas; /* 3 */
     kdrt__events *out;
     kdrt_result result[3];
 } kdrt__axis_sort;
@@ -1634,23 +1650,37 @@ static void kdrt__sort_axis(void *data, uint32_t k)
 {
     kdrt__axis_sort *job = (kdrt__axis_sort *)data;
     uint64_t *events =
-        (uint64_t *)kdrt__arena_alloc(&job->arenas[k], (2 * (size_t)job->n + 1) * sizeof(uint64_t));
+        (uint64_t *)kdrt__alloc(job->allocator, (2 * (size_t)job->n + 1) * sizeof(uint64_t));
     size_t count = 0;
     uint32_t r;
+    kdrt__arena scratch;
     job->out->axis[k] = events, job->out->count[k] = 0;
     job->result[k] = KDRT_ERROR_OUT_OF_MEMORY;
     if (!events) return;
     for (r = 0; r < job->n; ++r) count += kdrt__push_events(&job->refs[r], r, (int)k, events + count);
     job->out->count[k] = count;
-    job->result[k] = kdrt__sort_keys(&job->arenas[k], events, count);
+    kdrt__arena_init(&scratch, job->allocator);
+    job->result[k] = kdrt__sort_keys(&scratch, events, count);
+    kdrt__arena_free(&scratch);
 }
 
-static kdrt_result kdrt__sorted_events_parallel(const kdrt_scheduler *scheduler, kdrt__arena arenas[3],
-                                                const kdrt__ref *refs, uint32_t n, kdrt__events *out)
+static void kdrt__free_events(const kdrt_allocator *a, kdrt__events *e)
+{
+    int k;
+    for (k = 0; k < 3; ++k) kdrt__free(a, e->axis[k]), e->axis[k] = NULL;
+}
+
+static kdrt_result kdrt__sorted_events_owned(const kdrt_allocator *a,
+                                             const kdrt_scheduler *scheduler,
+                                             const kdrt__ref *refs, uint32_t n, kdrt__events *out)
 {
     kdrt__axis_sort job;
-    job.refs = refs, job.n = n, job.arenas = arenas, job.out = out;
-    scheduler->run(scheduler->user, kdrt__sort_axis, &job, 3);
+    uint32_t k;
+    job.allocator = a, job.refs = refs, job.n = n, job.out = out;
+    if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS)
+        scheduler->run(scheduler->user, kdrt__sort_axis, &job, 3);
+    else
+        for (k = 0; k < 3; ++k) kdrt__sort_axis(&job, k);
     return job.result[0] != KDRT_SUCCESS ? job.result[0]
            : job.result[1] != KDRT_SUCCESS ? job.result[1] : job.result[2];
 }
@@ -1866,9 +1896,6 @@ static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events,
 /* A large node at the top of a parallel build is binned in KDRT__CHUNKS chunks of its references,
    tasks on the scheduler: the chunks' counts add up to the same bins on any scheduler, or none.
    (Splitting the references in chunks too was slower on 2 cores: bench/README.md.) */
-#define KDRT__CHUNKS 16u
-#define KDRT__CHUNK_MIN_REFS 16384u /* smaller nodes: one thread */
-#define KDRT__PACK_CHUNK_MIN_BLOCKS 4096u /* fewer blocks are packed on one thread */
 
 typedef struct kdrt__chunked {
     const kdrt__builder *b;
@@ -1876,11 +1903,6 @@ typedef struct kdrt__chunked {
     uint32_t n;
     kdrt__bins *bins; /* KDRT__CHUNKS of them */
 } kdrt__chunked;
-
-static uint32_t kdrt__chunk_start(uint32_t n, uint32_t i)
-{
-    return (uint32_t)((uint64_t)n * i / KDRT__CHUNKS);
-}
 
 static void kdrt__bin_chunk(void *data, uint32_t i)
 {
@@ -1934,7 +1956,6 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
     if (events) {
         kdrt__sweep_axes(b, events, n, lo, hi, 1.0 / area, budget, best);
     } else {
-        /* At the parallel top, HIGH sorts a node's events for it alone: every candidate still. */
         if (b->exact_max < n || n > KDRT__EVENT_REF_MASK) {
             kdrt__bins_init(b, lo, hi, &bins);
             if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
@@ -1948,22 +1969,10 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         if (!(best->cost < leaf_cost) && b->exact_fallback && n <= KDRT__EVENT_REF_MASK) {
             kdrt__mark mark = kdrt__arena_mark(arena);
             kdrt__events all;
-            if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
-                /* Each axis sorted on its own thread. */
-                kdrt__arena arenas[3];
-                kdrt_result r;
-                int k;
-                for (k = 0; k < 3; ++k) kdrt__arena_init(&arenas[k], b->allocator);
-                r = kdrt__sorted_events_parallel(scheduler, arenas, refs, n, &all);
-                if (r == KDRT_SUCCESS) kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
-                for (k = 0; k < 3; ++k) kdrt__arena_free(&arenas[k]);
-                if (r != KDRT_SUCCESS) return r;
-            } else {
-                if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
-                    return KDRT_ERROR_OUT_OF_MEMORY;
-                kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
-                kdrt__arena_release(arena, mark);
-            }
+            if (kdrt__sorted_events(arena, refs, n, &all) != KDRT_SUCCESS)
+                return KDRT_ERROR_OUT_OF_MEMORY;
+            kdrt__sweep_axes(b, &all, n, lo, hi, 1.0 / area, budget, best);
+            kdrt__arena_release(arena, mark);
         }
     }
     if (!(best->cost < leaf_cost)) best->axis = -1;
@@ -1973,7 +1982,8 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
 /* The children's events, still in order: the node's events of the references wholly on one
    side, renumbered as index says (which keeps their order), merged with fresh, sorted events of
    the references the plane cut, made from their clipped boxes. */
-static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *events, uint32_t n,
+static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt_allocator *owner,
+                                      const kdrt__events *events, uint32_t n,
                                       const unsigned char *sides, uint32_t *const index[2],
                                       kdrt__ref *const child[2], const uint32_t count[2],
                                       kdrt__events out[2])
@@ -1994,8 +2004,9 @@ static kdrt_result kdrt__child_events(kdrt__arena *arena, const kdrt__events *ev
     for (k = 0; k < 3; ++k) {
         size_t i, kept[2] = {0, 0};
         for (c = 0; c < 2; ++c) {
-            out[c].axis[k] =
-                (uint64_t *)kdrt__arena_alloc(arena, (2 * (size_t)count[c] + 1) * sizeof(uint64_t));
+            const size_t bytes = (2 * (size_t)count[c] + 1) * sizeof(uint64_t);
+            out[c].axis[k] = (uint64_t *)(owner ? kdrt__alloc(owner, bytes)
+                                                : kdrt__arena_alloc(arena, bytes));
             if (!out[c].axis[k]) return KDRT_ERROR_OUT_OF_MEMORY;
         }
         /* Written on both sides and kept on one: no branch to mispredict (each array has a slot
@@ -2085,7 +2096,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
     if (owned) kdrt__free(b->allocator, refs); /* the children have their own */
     if (r == KDRT_SUCCESS && plane.axis >= 0) {
         if (events)
-            r = kdrt__child_events(arena, events, n, sides, index, child, count, child_events);
+            r = kdrt__child_events(arena, NULL, events, n, sides, index, child, count, child_events);
         if (r == KDRT_SUCCESS)
             r = kdrt__sah_node(b, arena, child[0], count[0], binned,
                                events ? &child_events[0] : NULL, child_lo[0], child_hi[0],
@@ -2116,6 +2127,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
 typedef struct kdrt__task {
     kdrt__builder out; /* the subtree, its nodes and refs numbered from 0 */
     kdrt__ref *refs;   /* its references, owned until the task has run */
+    kdrt__events events; /* HIGH: their sorted events, owned likewise; else all NULL */
     uint32_t n, depth, budget;
     float lo[3], hi[3];
     kdrt_result result;
@@ -2135,40 +2147,66 @@ static void kdrt__run_task(void *data, uint32_t index)
     kdrt__task *t = &top->tasks[top->largest_first[index]];
     kdrt__arena arena;
     kdrt__arena_init(&arena, t->out.allocator);
-    t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, 1, NULL, t->lo, t->hi, t->depth,
+    t->result = kdrt__sah_node(&t->out, &arena, t->refs, t->n, 1,
+                               t->events.axis[0] ? &t->events : NULL, t->lo, t->hi, t->depth,
                                t->budget);
     t->refs = NULL; /* the subtree's root freed them */
+    kdrt__free_events(t->out.allocator, &t->events);
     kdrt__arena_free(&arena);
 }
 
-/* The top of the tree: splits large nodes and hands the rest to tasks; takes ownership of refs. */
+/* The top of the tree: splits large nodes and hands the rest to tasks. Takes ownership of refs
+   and of events' arrays (HIGH: the node's sorted events, handed on to the children in order, as
+   the exact region does, so that no node of the top sorts again; else NULL). */
 static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *scheduler,
-                                 kdrt__top *top, kdrt__ref *refs, uint32_t n, const float lo[3],
-                                 const float hi[3], uint32_t depth, uint32_t budget)
+                                 kdrt__top *top, kdrt__ref *refs, kdrt__events *events, uint32_t n,
+                                 const float lo[3], const float hi[3], uint32_t depth,
+                                 uint32_t budget)
 {
     kdrt__ref *child[2] = {NULL, NULL};
-    uint32_t node = top->node_count++, count[2], child_budget[2];
+    kdrt__events child_events[2];
+    uint32_t node = top->node_count++, count[2] = {0, 0}, child_budget[2] = {0, 0};
+    uint32_t *index[2] = {NULL, NULL};
+    unsigned char *sides = NULL;
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
     kdrt_result r = KDRT_SUCCESS;
     kdrt__arena arena;
+    int c;
 
+    memset(child_events, 0, sizeof child_events);
     plane.axis = -1;
-    if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH) {
-        kdrt__arena_init(&arena, b->allocator);
-        r = kdrt__choose_plane(b, &arena, scheduler, refs, n, NULL, lo, hi, depth, budget, &plane);
-        kdrt__arena_free(&arena);
-        if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
-    }
-    if (plane.axis >= 0) {
+    kdrt__arena_init(&arena, b->allocator);
+    if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH)
+        r = kdrt__choose_plane(b, &arena, scheduler, refs, n, events, lo, hi, depth, budget,
+                               &plane);
+    if (r == KDRT_SUCCESS && plane.axis >= 0) {
         kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
-        r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, NULL,
-                             NULL);
-        if (r != KDRT_SUCCESS || !kdrt__share_budget(budget, count, child_budget)) {
+        if (events) {
+            sides = (unsigned char *)kdrt__arena_alloc(&arena, (size_t)n + 1);
+            index[0] = (uint32_t *)kdrt__arena_alloc(&arena, ((size_t)n + 1) * sizeof(uint32_t));
+            index[1] = (uint32_t *)kdrt__arena_alloc(&arena, ((size_t)n + 1) * sizeof(uint32_t));
+            if (!sides || !index[0] || !index[1]) r = KDRT_ERROR_OUT_OF_MEMORY;
+        }
+        if (r == KDRT_SUCCESS)
+            r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, sides,
+                                 index);
+        if (r == KDRT_SUCCESS && !kdrt__share_budget(budget, count, child_budget)) {
             kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
-            if (r != KDRT_SUCCESS) { kdrt__free(b->allocator, refs); return r; }
+            child[0] = child[1] = NULL;
             plane.axis = -1; /* over the budget after all: the node goes to a task */
         }
+        if (r == KDRT_SUCCESS && plane.axis >= 0 && events)
+            r = kdrt__child_events(&arena, b->allocator, events, n, sides, index, child, count,
+                                   child_events);
+    }
+    kdrt__arena_free(&arena);
+    if (r != KDRT_SUCCESS) {
+        kdrt__free(b->allocator, refs);
+        if (events) kdrt__free_events(b->allocator, events);
+        for (c = 0; c < 2; ++c)
+            kdrt__free(b->allocator, child[c]), kdrt__free_events(b->allocator, &child_events[c]);
+        return r;
     }
     if (plane.axis < 0) {
         kdrt__task *t = &top->tasks[top->task_count];
@@ -2177,18 +2215,22 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
         t->out.refs = NULL, t->out.ref_count = t->out.ref_capacity = 0;
         t->out.leaves = t->out.depth_reached = 0;
         t->refs = refs, t->n = n, t->depth = depth, t->budget = budget, t->result = KDRT_SUCCESS;
+        if (events) t->events = *events;
+        else memset(&t->events, 0, sizeof t->events);
         memcpy(t->lo, lo, sizeof t->lo), memcpy(t->hi, hi, sizeof t->hi);
         top->nodes[node] = kdrt__node_leaf(top->task_count++, 0); /* u.first: the task */
         return KDRT_SUCCESS;
     }
-    kdrt__free(b->allocator, refs);
-    r = kdrt__sah_top(b, scheduler, top, child[0], count[0], child_lo[0], child_hi[0], depth + 1,
-                      child_budget[0]);
+    kdrt__free(b->allocator, refs); /* the children have theirs */
+    if (events) kdrt__free_events(b->allocator, events);
+    r = kdrt__sah_top(b, scheduler, top, child[0], events ? &child_events[0] : NULL, count[0],
+                      child_lo[0], child_hi[0], depth + 1, child_budget[0]);
     top->nodes[node] = kdrt__node_inner((uint32_t)plane.axis, plane.pos, top->node_count);
     if (r == KDRT_SUCCESS)
-        return kdrt__sah_top(b, scheduler, top, child[1], count[1], child_lo[1], child_hi[1], depth + 1,
-                             child_budget[1]);
+        return kdrt__sah_top(b, scheduler, top, child[1], events ? &child_events[1] : NULL,
+                             count[1], child_lo[1], child_hi[1], depth + 1, child_budget[1]);
     kdrt__free(b->allocator, child[1]);
+    kdrt__free_events(b->allocator, &child_events[1]);
     return r;
 }
 
@@ -2227,13 +2269,25 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
                                    const float hi[3])
 {
     kdrt__top *top = (kdrt__top *)kdrt__alloc(b->allocator, sizeof *top);
+    kdrt__events root_events, *events = NULL;
     uint64_t nodes = 0, total_refs = 0, budget = (uint64_t)KDRT_SAH_REFERENCE_BUDGET * n;
     uint32_t i;
     kdrt_result r;
     if (!top) { kdrt__free(b->allocator, refs); return KDRT_ERROR_OUT_OF_MEMORY; }
     if (budget > 0xFFFFFFFFu) budget = 0xFFFFFFFFu; /* the most references a tree can address */
     top->node_count = top->task_count = 0;
-    r = kdrt__sah_top(b, scheduler, top, refs, n, lo, hi, 0, (uint32_t)budget);
+    memset(&root_events, 0, sizeof root_events);
+    if (b->exact_max >= n && n <= KDRT__EVENT_REF_MASK && n > KDRT__TASK_MIN_REFS) {
+        /* HIGH, with a top to split: the events sorted once, at the root. */
+        r = kdrt__sorted_events_owned(b->allocator, scheduler, refs, n, &root_events);
+        if (r != KDRT_SUCCESS) {
+            kdrt__free_events(b->allocator, &root_events);
+            kdrt__free(b->allocator, refs), kdrt__free(b->allocator, top);
+            return r;
+        }
+        events = &root_events;
+    }
+    r = kdrt__sah_top(b, scheduler, top, refs, events, n, lo, hi, 0, (uint32_t)budget);
     if (r == KDRT_SUCCESS) {
         /* Largest first, so that no thread is left with a big task at the end (the order
            changes only the timing: each task's subtree goes where its index says). */
@@ -2263,6 +2317,7 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
     if (r == KDRT_SUCCESS) kdrt__join(b, top, 0);
     for (i = 0; i < top->task_count; ++i) {
         kdrt__free(b->allocator, top->tasks[i].refs); /* set only if the task never ran */
+        kdrt__free_events(b->allocator, &top->tasks[i].events);
         kdrt__free(b->allocator, top->tasks[i].out.nodes);
         kdrt__free(b->allocator, top->tasks[i].out.refs);
     }

@@ -37,26 +37,38 @@ kt::TreePtr build(const common::Mesh &mesh, const kt::Builder &builder, uint32_t
     return kt::TreePtr(tree);
 }
 
-// The tree answers `rays` as the double-precision reference does, exactly as testing every
-// triangle does (the header's promise), and the rays hit something.
-void check_against_every_triangle(const common::Mesh &mesh, const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
-    kt::TreePtr all = build(mesh, kt::kBuilders[0], 0);  // leaf size 0: every triangle
-    const std::vector<kdrt_hit> want = kt::trace_all(all.get(), rays), got = kt::trace_all(tree, rays);
-    const oracle::Oracle reference(mesh);
-    const std::vector<oracle::Reference> refs = oracle::reference_all(reference, rays);
-    oracle::Agreement tally;
-    size_t differ = 0, hits = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-        oracle::check_hit(reference, refs[i], rays[i], got[i], tally);
-        differ += !kt::same_hit(want[i], got[i]);
-        hits += want[i].triangle != KDRT_INVALID_ID;
+// What a mesh's rays must get: the double-precision reference's answers and those of testing
+// every triangle (leaf size 0), worked out once for the trees of every builder.
+struct EveryTriangle {
+    const oracle::Oracle reference;
+    const std::vector<kdrt_ray> rays;
+    const std::vector<oracle::Reference> refs;
+    kt::TreePtr all;
+    std::vector<kdrt_hit> want;
+    std::vector<unsigned char> occluded;
+    EveryTriangle(const common::Mesh &mesh, std::vector<kdrt_ray> r)
+        : reference(mesh), rays(std::move(r)), refs(oracle::reference_all(reference, rays)),
+          all(build(mesh, kt::kBuilders[0], 0)), want(kt::trace_all(all.get(), rays)),
+          occluded(kt::occluded_all(all.get(), rays)) {}
+
+    // The tree answers the rays as the reference does, exactly as testing every triangle does
+    // (the header's promise), and the rays hit something.
+    void check(const kdrt_tree *tree) const {
+        const std::vector<kdrt_hit> got = kt::trace_all(tree, rays);
+        oracle::Agreement tally;
+        size_t differ = 0, hits = 0;
+        for (size_t i = 0; i < rays.size(); ++i) {
+            oracle::check_hit(reference, refs[i], rays[i], got[i], tally);
+            differ += !kt::same_hit(want[i], got[i]);
+            hits += want[i].triangle != KDRT_INVALID_ID;
+        }
+        INFO(tally.first_wrong);
+        CHECK(tally.wrong == 0);
+        CHECK(differ == 0);
+        CHECK(hits > 0);
+        CHECK(kt::occluded_all(tree, rays) == occluded);
     }
-    INFO(tally.first_wrong);
-    CHECK(tally.wrong == 0);
-    CHECK(differ == 0);
-    CHECK(hits > 0);
-    CHECK(kt::occluded_all(tree, rays) == kt::occluded_all(all.get(), rays));
-}
+};
 
 }  // namespace
 
@@ -83,25 +95,28 @@ TEST_CASE("hostile: a mesh scaled by 2^-60 to 2^60 gets the same tree, node for 
 TEST_CASE("hostile: a 200,000-triangle grid at 1e20 and 1e-20 gets a tree as good as at 1", "[hostile]") {
     const common::Mesh grid = kt::grid(317, 316, 8);
     REQUIRE(grid.triangle_count() >= 200000);
-    for (const kt::Builder &builder : kt::kSahBuilders) {
-        INFO(builder.name);
-        kt::TreePtr unit = build(grid, builder, 4);
-        kdrt_tree_stats base;
-        kdrt_tree_get_stats(unit.get(), &base);
-        const std::vector<kdrt_ray> unit_rays = kt::random_rays(kdrt_tree_bounds(unit.get()), 300, 9);
-        for (double scale : {1e20, 1e-20}) {
-            INFO("scaled by " << scale);
-            const common::Mesh far = scaled(grid, scale);
-            std::vector<kdrt_ray> rays = unit_rays;  // the same rays, scaled with the scene
-            for (kdrt_ray &r : rays)
-                for (int a = 0; a < 3; ++a) r.org[a] = float(r.org[a] * scale), r.dir[a] = float(r.dir[a] * scale);
-            kt::TreePtr tree = build(far, builder, 4);
+    kdrt_tree_stats base[3];
+    for (int b = 0; b < 3; ++b) kdrt_tree_get_stats(build(grid, kt::kSahBuilders[b], 4).get(), &base[b]);
+    kdrt_aabb box;
+    const kdrt_triangles view = grid.view();
+    REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
+    const std::vector<kdrt_ray> unit_rays = kt::random_rays(box, 300, 9);
+    for (double scale : {1e20, 1e-20}) {
+        INFO("scaled by " << scale);
+        const common::Mesh far = scaled(grid, scale);
+        std::vector<kdrt_ray> rays = unit_rays;  // the same rays, scaled with the scene
+        for (kdrt_ray &r : rays)
+            for (int a = 0; a < 3; ++a) r.org[a] = float(r.org[a] * scale), r.dir[a] = float(r.dir[a] * scale);
+        const EveryTriangle every(far, rays);
+        for (int b = 0; b < 3; ++b) {
+            INFO(kt::kSahBuilders[b].name);
+            kt::TreePtr tree = build(far, kt::kSahBuilders[b], 4);
             kdrt_tree_stats s;
             kdrt_tree_get_stats(tree.get(), &s);
             // Not a power of two: rounding moves some vertices, so the trees may differ a little.
-            CHECK(s.nodes > base.nodes / 2);
-            CHECK(s.sah_cost < base.sah_cost * 1.01);
-            check_against_every_triangle(far, tree.get(), rays);
+            CHECK(s.nodes > base[b].nodes / 2);
+            CHECK(s.sah_cost < base[b].sah_cost * 1.01);
+            every.check(tree.get());
         }
     }
 }
@@ -115,6 +130,10 @@ TEST_CASE("hostile: fans, slivers, overlapping and identical triangles stay with
     for (const std::string &kind : oracle::hostile_kinds()) {
         const common::Mesh mesh = oracle::hostile_mesh(kind, n, 12);
         REQUIRE(mesh.triangle_count() == n);
+        kdrt_aabb box;
+        const kdrt_triangles view = mesh.view();
+        REQUIRE(kdrt_aabb_of_triangles(&view, &box, nullptr) == KDRT_SUCCESS);
+        const EveryTriangle every(mesh, kt::random_rays(box, 400, 13));
         for (const kt::Builder &builder : kt::kSahBuilders)
             for (uint32_t leaf : {1u, 4u}) {
                 INFO(mesh.name << ", " << builder.name << ", leaf size " << leaf);
@@ -129,7 +148,7 @@ TEST_CASE("hostile: fans, slivers, overlapping and identical triangles stay with
                 common::ThreadScheduler pool(2);
                 kt::TreePtr parallel = build(mesh, builder, leaf, pool.hooks());
                 kt::check_same_shape(tree.get(), parallel.get(), 1.0);
-                check_against_every_triangle(mesh, tree.get(), kt::random_rays(kdrt_tree_bounds(tree.get()), 400, 13));
+                every.check(tree.get());
             }
     }
 }

@@ -30,8 +30,8 @@ common::Mesh uv_sphere(uint32_t rings, uint32_t segments, double radius, bool in
 // vertex: every plane near the centre cuts most of them), "cone" (the same fan with its centre
 // lifted), "slivers" (needles 1e-3 thick across the whole unit cube, half along x and half along
 // y, crossing each other), "overlapping" (triangles about 0.3 across anywhere in the unit cube)
-// "identical" (one triangle, many times) and "soup" (small random triangles filling the unit
-// cube: not hostile, only big). A soup; named "hostile_KIND".
+// and "identical" (one triangle, many times); or "soup" (small random triangles filling the unit
+// cube), not hostile, only a big input for kdrt-bench. A soup; named "hostile_KIND".
 std::vector<std::string> hostile_kinds();
 common::Mesh hostile_mesh(const std::string &kind, uint32_t triangles, uint64_t seed);
 
