@@ -181,7 +181,8 @@
      more); the build's reference arrays at most 8 n at any moment
      (28 bytes each: above the exact region each node's array is freed once its children have
      theirs), and sorted events for at most one budget's worth at a time (48 bytes a
-     reference); O(n) work a level, sorts included (long ones are radix sorts), over at most
+     reference; with HIGH, the top's tasks hold theirs until they run: a budget's worth
+     more); O(n) work a level, sorts included (long ones are radix sorts), over at most
      max_depth levels: O(n log n) with the default max_depth. Ordinary meshes stay far below
      the budget and keep their trees; a fan of triangles round one vertex gets big
      leaves round it instead of references without end.
