@@ -1899,7 +1899,6 @@ static void kdrt__sweep_axes(const kdrt__builder *b, const kdrt__events *events,
    (Splitting the references in chunks too was slower on 2 cores: bench/README.md.) */
 
 typedef struct kdrt__chunked {
-    const kdrt__builder *b;
     const kdrt__ref *refs;
     uint32_t n;
     kdrt__bins *bins; /* KDRT__CHUNKS of them */
@@ -1920,7 +1919,7 @@ static kdrt_result kdrt__bin_refs_chunked(const kdrt__builder *b, const kdrt_sch
     uint32_t i, j;
     int k;
     memset(&c, 0, sizeof c);
-    c.b = b, c.refs = refs, c.n = n;
+    c.refs = refs, c.n = n;
     c.bins = (kdrt__bins *)kdrt__alloc(b->allocator, KDRT__CHUNKS * sizeof(kdrt__bins));
     if (!c.bins) return KDRT_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < KDRT__CHUNKS; ++i) {
