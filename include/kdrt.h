@@ -164,12 +164,12 @@
      polygon split by the plane (perfect splits), so it goes only where some of it lies. A node
      becomes a leaf when it holds at most max_leaf_size triangles, at max_depth, or when no
      split within its reference budget is cheaper than testing all its triangles (the costs are
-     options). A leaf
-     is priced by its blocks of 8 triangles (KERNELS), ceil(n / 8) block tests, not n triangle
-     tests, so the SAH stops where one block test is cheaper than more splits: on the meshes of
-     bench/README.md leaves of about 20 triangles, half the references and a fourteenth of the
-     nodes of triangle pricing, 2.8 times faster builds and 30 to 50% faster rays on both
-     kernels. It is the default (KDRT_BUILDER_DEFAULT and kdrt_default_build_options()).
+     options). A leaf is priced by its blocks of 8 triangles (KERNELS), ceil(n / 8) block tests,
+     not n triangle tests, so the SAH stops where one block test is cheaper than more splits: on
+     the meshes of bench/README.md leaves of about 20 triangles, half the references and a
+     fourteenth of the nodes of triangle pricing, 2.8 times faster builds and 30 to 50% faster
+     rays on both kernels. It is the default (KDRT_BUILDER_DEFAULT and
+     kdrt_default_build_options()).
      Reference budget: a triangle a plane cuts is referred to on both sides, and some inputs (a
      fan of triangles round one vertex, crossing slivers) would multiply references without
      end. The root's budget is KDRT_SAH_REFERENCE_BUDGET (8) references a triangle; a split is
@@ -190,9 +190,10 @@
      split on the calling thread, its nodes of 16384 references or more binned in 16 chunks that
      are tasks on options.scheduler (HIGH: the root's events sorted an axis a task); the subtrees
      below, at most 64, are independent tasks too, then joined in depth-first order. Checking
-     the triangles before and packing the leaf blocks after are tasks in 16 chunks as well. The cut and the chunks depend only on the input, so the
-     tree is the same for any scheduler, thread count or task order, and without one. The
-     scheduler's run() is called several times a build: a scheduler should keep its threads.
+     the triangles before and packing the leaf blocks after are tasks in 16 chunks as well. The
+     cut and the chunks depend only on the input, so the tree is the same for any scheduler,
+     thread count or task order, and without one. The scheduler's run() is called several
+     times a build: a scheduler should keep its threads.
      max_leaf_size = 0 means no tree: every query tests every triangle, through the same API.
      Memory, whatever the builder: 8 bytes a node (pbrt-v3's layout), then the triangles the
      intersection tests read, copied at the end of the build so that a test does not chase the
@@ -1686,8 +1687,9 @@ static kdrt_result kdrt__sorted_events_owned(const kdrt_allocator *a,
            : job.result[1] != KDRT_SUCCESS ? job.result[1] : job.result[2];
 }
 
-/* Binned sweep for large nodes: each axis cut into KDRT_SAH_BINS equal bins, a reference counted
-   in the bins of its two faces, and the planes between bins costed from those counts. O(n). */
+/* Binned sweep for large nodes: each axis cut into b->bins equal bins (KDRT_SAH_BINS, or FAST's
+   32), a reference counted in the bins of its two faces, and the planes between bins costed from
+   those counts. O(n). */
 
 /* A reference's bin from its position f in bins (0 to top = bins - 1 inside the node): clamped as
    a float, so the conversion never sees a value out of range, and NaN goes to bin 0. */
@@ -1773,29 +1775,27 @@ static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 
 /* The children's references, in arrays from the arena (or, with no arena, at the top of a
    parallel build, from the allocator): a reference on one side is copied, one the plane cuts is
-   split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies. When
-   sides is not NULL it gets each reference's side, and index[c] where it went in child c (or
-   KDRT_INVALID_ID). */
-static void kdrt__count_sides(const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
-                              uint32_t room[2])
+   split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies, or
+   (FAST, no clipping) has its box cut at the plane. When sides is not NULL it gets each
+   reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
+static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
+                                    const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
+                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
+                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
 {
-    uint32_t r;
-    room[0] = room[1] = 0;
+    uint32_t room[2] = {0, 0}, r, c;
     for (r = 0; r < n; ++r) {
         unsigned side = kdrt__ref_side(&refs[r], plane);
         room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
     }
-}
-
-/* refs[0..n) to the children, written from out[c] on (room for what kdrt__count_sides counted,
-   and one more); count[c] gets how many went to child c. */
-static void kdrt__split_range(const kdrt__builder *b, const kdrt__ref *refs, uint32_t n,
-                              const kdrt__plane *plane, float child_lo[2][3],
-                              float child_hi[2][3], kdrt__ref *out[2], uint32_t count[2],
-                              unsigned char *sides, uint32_t *index[2])
-{
-    uint32_t r, c;
-    count[0] = count[1] = 0;
+    for (c = 0; c < 2; ++c) {
+        /* One to spare: a reference is written to both sides and kept on its own. */
+        size_t bytes = ((size_t)room[c] + 1) * sizeof(kdrt__ref);
+        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, bytes)
+                                       : kdrt__alloc(b->allocator, bytes));
+        if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
+        count[c] = 0;
+    }
     for (r = 0; r < n; ++r) {
         unsigned side = kdrt__ref_side(&refs[r], plane), into = side;
         float lo[2][3], hi[2][3];
@@ -1804,7 +1804,7 @@ static void kdrt__split_range(const kdrt__builder *b, const kdrt__ref *refs, uin
             /* Most references: copied to both, kept where they lie, without a branch (the spare
                slot takes the write past the last kept one). */
             const uint32_t keep_below = side & KDRT__SIDE_BELOW, keep_above = side >> 1;
-            out[0][count[0]] = refs[r], out[1][count[1]] = refs[r];
+            child[0][count[0]] = refs[r], child[1][count[1]] = refs[r];
             if (sides) {
                 index[0][r] = keep_below ? count[0] : KDRT_INVALID_ID;
                 index[1][r] = keep_above ? count[1] : KDRT_INVALID_ID;
@@ -1822,40 +1822,14 @@ static void kdrt__split_range(const kdrt__builder *b, const kdrt__ref *refs, uin
             hi[0][plane->axis] = lo[1][plane->axis] = plane->pos;
         }
         for (c = 0; c < 2; ++c) {
-            kdrt__ref *o = &out[c][count[c]];
+            kdrt__ref *out = &child[c][count[c]];
             if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
-            memcpy(o->lo, lo[c], sizeof o->lo), memcpy(o->hi, hi[c], sizeof o->hi);
-            o->tri = refs[r].tri;
+            memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
+            out->tri = refs[r].tri;
             ++count[c];
         }
     }
-}
-
-/* Two arrays for the children's references, room[c] and one to spare each, from the arena or,
-   with none, the allocator. */
-static kdrt_result kdrt__child_arrays(const kdrt__builder *b, kdrt__arena *arena,
-                                      const uint32_t room[2], kdrt__ref *child[2])
-{
-    int c;
-    for (c = 0; c < 2; ++c) {
-        size_t bytes = ((size_t)room[c] + 1) * sizeof(kdrt__ref);
-        child[c] = (kdrt__ref *)(arena ? kdrt__arena_alloc(arena, bytes)
-                                       : kdrt__alloc(b->allocator, bytes));
-        if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
-    }
-    return KDRT_SUCCESS;
-}
-
-static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
-                                    const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
-                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
-                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
-{
-    uint32_t room[2];
-    kdrt__count_sides(refs, n, plane, room);
-    if (kdrt__child_arrays(b, arena, room, child) != KDRT_SUCCESS) return KDRT_ERROR_OUT_OF_MEMORY;
-    kdrt__split_range(b, refs, n, plane, child_lo, child_hi, child, count, sides, index);
     return KDRT_SUCCESS;
 }
 
@@ -1911,25 +1885,19 @@ static void kdrt__bin_chunk(void *data, uint32_t i)
     kdrt__bin_refs(c->refs + begin, end - begin, &c->bins[i]);
 }
 
-/* refs[0..n) binned in chunks on the scheduler, their counts summed into *out (initialised). */
+/* refs[0..n) binned in chunks on the scheduler, their counts summed into *out (initialised for
+   the node's box [lo, hi]). */
 static kdrt_result kdrt__bin_refs_chunked(const kdrt__builder *b, const kdrt_scheduler *scheduler,
-                                          const kdrt__ref *refs, uint32_t n, kdrt__bins *out)
+                                          const kdrt__ref *refs, uint32_t n, const float lo[3],
+                                          const float hi[3], kdrt__bins *out)
 {
     kdrt__chunked c;
     uint32_t i, j;
     int k;
-    memset(&c, 0, sizeof c);
     c.refs = refs, c.n = n;
     c.bins = (kdrt__bins *)kdrt__alloc(b->allocator, KDRT__CHUNKS * sizeof(kdrt__bins));
     if (!c.bins) return KDRT_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < KDRT__CHUNKS; ++i) {
-        c.bins[i].count = out->count;
-        for (k = 0; k < 3; ++k) {
-            c.bins[i].lo[k] = out->lo[k], c.bins[i].scale[k] = out->scale[k];
-            memset(c.bins[i].starts[k], 0, out->count * sizeof(uint32_t));
-            memset(c.bins[i].ends[k], 0, out->count * sizeof(uint32_t));
-        }
-    }
+    for (i = 0; i < KDRT__CHUNKS; ++i) kdrt__bins_init(b, lo, hi, &c.bins[i]);
     scheduler->run(scheduler->user, kdrt__bin_chunk, &c, KDRT__CHUNKS);
     for (i = 0; i < KDRT__CHUNKS; ++i)
         for (k = 0; k < 3; ++k)
@@ -1959,7 +1927,7 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         if (b->exact_max < n || n > KDRT__EVENT_REF_MASK) {
             kdrt__bins_init(b, lo, hi, &bins);
             if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
-                if (kdrt__bin_refs_chunked(b, scheduler, refs, n, &bins) != KDRT_SUCCESS)
+                if (kdrt__bin_refs_chunked(b, scheduler, refs, n, lo, hi, &bins) != KDRT_SUCCESS)
                     return KDRT_ERROR_OUT_OF_MEMORY;
             } else {
                 kdrt__bin_refs(refs, n, &bins);
