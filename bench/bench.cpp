@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <numeric>
+#include <utility>
 
 namespace kb {
 
@@ -33,6 +34,22 @@ std::vector<std::string> list_items(const std::string &text) {
         if (comma == std::string::npos) return items;
         start = comma + 1;
     }
+}
+
+// A list of names, each one of `choices`, into their values in order; false when an item is none
+// of them (an empty one included).
+template <typename T>
+bool parse_choices(const std::string &text, const std::vector<std::pair<std::string, T>> &choices,
+                   std::vector<T> &out) {
+    out.clear();
+    for (const std::string &item : list_items(text)) {
+        auto found = std::find_if(choices.begin(), choices.end(), [&](const std::pair<std::string, T> &c) {
+            return c.first == item;
+        });
+        if (found == choices.end()) return false;
+        out.push_back(found->second);
+    }
+    return true;
 }
 
 // "KT:KI:EB,KT:KI:EB,...": K_T and K_I finite and above 0, EB in (0, 1). kdrt reads a zero cost
@@ -236,14 +253,10 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.accuracy = true;
         } else if (arg == "--intersector") {
             if (!value(v)) return false;
-            out.intersectors.clear();
-            for (const std::string &item : list_items(v)) {
-                if (item == "watertight") out.intersectors.push_back(KDRT_INTERSECTOR_WATERTIGHT);
-                else if (item == "fast") out.intersectors.push_back(KDRT_INTERSECTOR_FAST);
-                else {
-                    error = "--intersector wants watertight, fast or both separated by a comma, got '" + v + "'";
-                    return false;
-                }
+            if (!parse_choices<kdrt_intersector>(
+                    v, {{"watertight", KDRT_INTERSECTOR_WATERTIGHT}, {"fast", KDRT_INTERSECTOR_FAST}}, out.intersectors)) {
+                error = "--intersector wants watertight, fast or both separated by a comma, got '" + v + "'";
+                return false;
             }
         } else if (arg == "--hard-rays") {
             if (!value(v)) return false;
@@ -296,27 +309,21 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--builder") {
             if (!value(v)) return false;
-            out.builders.clear();
-            for (const std::string &item : list_items(v)) {
-                if (item != "median" && item != "sah") {
-                    error = "--builder wants median, sah or both separated by a comma, got '" + v + "'";
-                    return false;
-                }
-                out.builders.push_back(item);
+            if (!parse_choices<std::string>(v, {{"median", "median"}, {"sah", "sah"}}, out.builders)) {
+                error = "--builder wants median, sah or both separated by a comma, got '" + v + "'";
+                return false;
             }
         } else if (arg == "--sah-costs") {
             if (!value(v) || !parse_sah_costs(v, out.sah_costs, error)) return false;
         } else if (arg == "--quality") {
             if (!value(v)) return false;
-            out.qualities.clear();
-            for (const std::string &item : list_items(v)) {
-                if (item == "fast") out.qualities.push_back(KDRT_BUILD_QUALITY_FAST);
-                else if (item == "medium") out.qualities.push_back(KDRT_BUILD_QUALITY_MEDIUM);
-                else if (item == "high") out.qualities.push_back(KDRT_BUILD_QUALITY_HIGH);
-                else {
-                    error = "--quality wants fast, medium or high, separated by commas, got '" + v + "'";
-                    return false;
-                }
+            if (!parse_choices<kdrt_build_quality>(v,
+                                                   {{"fast", KDRT_BUILD_QUALITY_FAST},
+                                                    {"medium", KDRT_BUILD_QUALITY_MEDIUM},
+                                                    {"high", KDRT_BUILD_QUALITY_HIGH}},
+                                                   out.qualities)) {
+                error = "--quality wants fast, medium or high, separated by commas, got '" + v + "'";
+                return false;
             }
         } else if (arg == "--rays") {
             if (!value(v)) return false;
