@@ -52,8 +52,8 @@
      These three exist to measure the choice: the defaults are the measured best, and any value
      in range builds a valid tree, if not the same one. A value out of range stops the
      compilation with an #error.
-       KDRT_NO_SIMD              leave the AVX2 kernel out: every tree runs the scalar one
-                                 (KERNELS)
+       KDRT_NO_SIMD              leave the AVX2 kernel and SSE2 binning out: every tree runs
+                                 the scalar kernel and is binned by scalar code (KERNELS)
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -220,7 +220,10 @@
      AVX2 kernel leaves a block early when float products already prove that the ray misses
      all 8 triangles: a filter that changes no answer. Where the compiler contracts multiply-adds
      into FMAs (-march=native with -ffp-contract=fast), each kernel keeps every guarantee above
-     but their last bits may differ. On MSVC and off x86-64 the scalar kernel runs.
+     but their last bits may differ. On MSVC and off x86-64 the scalar kernel runs. The SAH
+     builder bins references with SSE2 (part of x86-64: no attribute needed), each lane rounding
+     as the scalar code does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL bins with the
+     scalar code too.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -391,8 +394,9 @@ typedef enum kdrt_build_flags {
     /* Leave out triangles with a NaN or infinite coordinate or an index out of range, and count
        them in kdrt_build_report.skipped_triangles, instead of failing the build. */
     KDRT_BUILD_SKIP_INVALID_TRIANGLES = 1u << 0,
-    /* Trace this tree with the scalar kernel even where the CPU has AVX2 (KERNELS): the answers
-       are the same bit for bit, so this is for comparing the kernels and measuring them. */
+    /* Trace this tree with the scalar kernel even where the CPU has AVX2, and bin without SSE2
+       (KERNELS): the tree and the answers are the same bit for bit, so this is for comparing the
+       SIMD and scalar code and measuring them. */
     KDRT_BUILD_SCALAR_KERNEL = 1u << 1
 } kdrt_build_flags;
 
@@ -649,6 +653,11 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
 #include <string.h>
+/* SSE2, part of x86-64 itself: the builder's binning (kdrt__bin_refs), with no target attribute. */
+#if !defined(KDRT_NO_SIMD) && defined(__SSE2__)
+#define KDRT__SSE2 1
+#include <emmintrin.h>
+#endif
 
 #ifndef KDRT_ASSERT
 #include <assert.h>
@@ -1091,6 +1100,7 @@ typedef struct kdrt__builder {
        triangles a plane cuts are clipped to the children (perfect splits), else their boxes. */
     uint32_t exact_max, bins;
     int exact_fallback, clip;
+    int sse; /* bins with SSE2 where compiled in; not with KDRT_BUILD_SCALAR_KERNEL */
     kdrt__node *nodes;
     uint32_t node_count, node_capacity;
     uint32_t *refs;
@@ -1703,7 +1713,9 @@ static uint32_t kdrt__bin(float f, float top)
 /* A node's bins: per axis, how many references' boxes start and end in each bin. */
 typedef struct kdrt__bins {
     uint32_t count; /* bins per axis: b->bins */
-    float lo[3], scale[3]; /* the node's box: bin of x = (x - lo) * scale, clamped */
+    int sse;        /* binned with SSE2 (kdrt__bin_refs) */
+    float top;      /* count - 1, the last bin */
+    float lo[4], scale[4]; /* the node's box: bin of x = (x - lo) * scale, clamped; [3] unused */
     uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS];
 } kdrt__bins;
 
@@ -1712,6 +1724,8 @@ static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const flo
 {
     int k;
     bins->count = b->bins; /* at most KDRT_SAH_BINS */
+    bins->sse = b->sse, bins->top = (float)(b->bins - 1u);
+    bins->lo[3] = bins->scale[3] = 0.0f;
     for (k = 0; k < 3; ++k) {
         bins->lo[k] = lo[k];
         bins->scale[k] = hi[k] > lo[k] ? (float)bins->count / (hi[k] - lo[k]) : 0.0f;
@@ -1720,16 +1734,35 @@ static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const flo
     }
 }
 
-/* Counts refs[0..n) into bins. */
+/* Counts refs[0..n) into bins. SSE2 bins a reference's three axes at once, each lane rounding
+   and clamping as kdrt__bin does (max returns its second operand for NaN, which kdrt__bin sends
+   to 0 too), so the bins and the tree are the same either way. */
 static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
 {
-    const float top = (float)(bins->count - 1u);
     uint32_t r;
     int k;
+#if KDRT__SSE2
+    if (bins->sse) {
+        const __m128 lo = _mm_loadu_ps(bins->lo), scale = _mm_loadu_ps(bins->scale);
+        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(bins->top);
+        for (r = 0; r < n; ++r) {
+            /* Lanes 0 to 2 are x, y, z; lane 3 reads the next field of the reference, unused. */
+            uint32_t at[8]; /* the bins of lo[0..2], then of hi[0..2] from 4 */
+            __m128 f = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo), lo), scale);
+            __m128 g = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].hi), lo), scale);
+            f = _mm_min_ps(_mm_max_ps(f, zero), top), g = _mm_min_ps(_mm_max_ps(g, zero), top);
+            _mm_storeu_si128((__m128i *)at, _mm_cvttps_epi32(f));
+            _mm_storeu_si128((__m128i *)(at + 4), _mm_cvttps_epi32(g));
+            for (k = 0; k < 3; ++k) bins->starts[k][at[k]] += 1, bins->ends[k][at[k + 4]] += 1;
+        }
+        return;
+    }
+#endif
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
-            bins->starts[k][kdrt__bin((refs[r].lo[k] - bins->lo[k]) * bins->scale[k], top)] += 1;
-            bins->ends[k][kdrt__bin((refs[r].hi[k] - bins->lo[k]) * bins->scale[k], top)] += 1;
+            const float last = bins->top;
+            bins->starts[k][kdrt__bin((refs[r].lo[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
+            bins->ends[k][kdrt__bin((refs[r].hi[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
         }
 }
 
@@ -2467,6 +2500,7 @@ static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
         opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
     b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangle_count);
     if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
+    b->sse = !(opt->flags & KDRT_BUILD_SCALAR_KERNEL);
     switch (opt->quality) {
     case KDRT_BUILD_QUALITY_FAST:
         b->exact_max = 0, b->bins = KDRT__FAST_BINS, b->exact_fallback = 0, b->clip = 0;

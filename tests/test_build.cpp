@@ -87,6 +87,34 @@ TEST_CASE("build: the parallel SAH build gives the same tree on any scheduler", 
     }
 }
 
+// The builder bins with SSE2 where it is compiled in, and with scalar code under
+// KDRT_BUILD_SCALAR_KERNEL: each lane must round and clamp as the scalar code does, so the two
+// give the same tree. A box whose extent overflows to infinity has bin scale 0 on that axis, and
+// infinity times 0 is NaN: such an axis is not costed, but its bins must stay in range (ASan).
+TEST_CASE("build: SSE2 and scalar binning give the same tree", "[build][sah]") {
+    common::Mesh huge = kt::random_soup(3000, 8);  // corners from -3e38 to 3e38: extents overflow
+    for (float &p : huge.positions) p = float((p - 5.0) * 6e37);
+    huge.name = "soup from -3e38 to 3e38";
+    common::Mesh flat = kt::grid(80, 80, 2);  // z = 0 only: an axis of scale 0 at every node
+    for (size_t i = 2; i < flat.positions.size(); i += 3) flat.positions[i] = 0.0f;
+    const common::Mesh meshes[] = {kt::sphere(100, 200, 1.0), kt::random_soup(30000, 5), flat, huge};
+    for (const common::Mesh &mesh : meshes)
+        for (const kt::Builder &builder : kt::kSahBuilders) {
+            INFO(mesh.name << ", " << builder.name);
+            kdrt_build_options o = kdrt_default_build_options();
+            builder.apply(o);
+            o.max_leaf_size = 4;
+            const kdrt_triangles view = mesh.view();
+            kdrt_tree *simd = nullptr, *scalar = nullptr;
+            REQUIRE(kdrt_tree_build(&view, &o, &simd, nullptr) == KDRT_SUCCESS);
+            o.flags |= KDRT_BUILD_SCALAR_KERNEL;
+            REQUIRE(kdrt_tree_build(&view, &o, &scalar, nullptr) == KDRT_SUCCESS);
+            kt::TreePtr a(simd), b(scalar);
+            if (&mesh != &meshes[3]) CHECK(kdrt_tree_node_count(a.get()) > 1);
+            kt::check_same_shape(a.get(), b.get());
+        }
+}
+
 namespace {
 
 // Whether the triangle meets the box [lo - margin, hi + margin] (margin < 0 shrinks it): the
