@@ -364,6 +364,8 @@ bool Viewer::screenshot(const std::string &path, std::string &error)
         error = "cannot write '" + path + "': nothing rendered yet";
         return false;
     }
+    // A key may have started the image again since the last frame (p then F12): render it first.
+    if (acc_.samples == 0 && !render(acc_.width, acc_.height, error)) return false;
     compose();
     std::vector<unsigned char> rgb(pixels_.size() * 3);
     for (size_t i = 0; i < pixels_.size(); ++i) {
