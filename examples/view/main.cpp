@@ -136,6 +136,8 @@ struct Window {
             if (std::getenv("DISPLAY")) drivers.push_back("x11");
             if (std::getenv("WAYLAND_DISPLAY")) drivers.push_back("wayland");
         }
+        SDL_SetHint(SDL_HINT_FRAMEBUFFER_ACCELERATION, "0");
+        SDL_SetHint(SDL_HINT_RENDER_DRIVER, "software");
         std::string why = "DISPLAY is not set";
         for (const std::string &driver : drivers) {
             if (!(asked && *asked)) SDL_SetHint(SDL_HINT_VIDEODRIVER, driver.c_str());
@@ -157,8 +159,9 @@ struct Window {
             error = std::string("cannot open a window: ") + SDL_GetError();
             return false;
         }
-        renderer = SDL_CreateRenderer(window, -1, 0);
-        if (!renderer) renderer = SDL_CreateRenderer(window, -1, SDL_RENDERER_SOFTWARE);
+        // The frames are made on the CPU: SDL's software renderer copies them to the window, and
+        // no OpenGL driver is loaded.
+        renderer = SDL_CreateRenderer(window, -1, SDL_RENDERER_SOFTWARE);
         if (!renderer) {
             error = std::string("cannot draw in the window: ") + SDL_GetError();
             return false;

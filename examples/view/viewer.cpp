@@ -331,7 +331,7 @@ void Viewer::draw_help()
         text += std::string("tree: ") + (builder_ == kr::TreeBuilder::sah ? "SAH" : "median") + ", leaf size " +
                 std::to_string(st.max_leaf_size) + ", built in " + fixed(build_ms_, 1) + " ms\n";
     text += std::string("glass ") + on(st.enable_glass) + ", mirrors " + on(st.enable_mirror) + ", shadow rays " +
-            std::to_string(st.shadow_rays) + ", interpolation " + on(st.enable_interpolation) +
+            std::to_string(st.shadow_rays) + ",\ninterpolation " + on(st.enable_interpolation) +
             (show_boxes_ ? ", boxes to depth " + std::to_string(box_depth_) : std::string()) + "\n\n";
     text +=
         "p shift+p  next, previous preset\n"
@@ -342,12 +342,12 @@ void Viewer::draw_help()
         "k  tree boxes   [ ]  their depth\n"
         "F12 F2  screenshot   h  help   Esc  quit";
     const int W = int(acc_.width), H = int(acc_.height);
-    const int scale = W >= 480 ? 2 : 1;
     int lines = 1, longest = 0, column = 0;
     for (const char c : text) {
         if (c == '\n') ++lines, column = 0;
         else longest = std::max(longest, ++column);
     }
+    const int scale = W >= (4 * longest + 4) * 2 ? 2 : 1;  // doubled where the lines fit
     // Darken the panel under the text, then draw it.
     const int pw = std::min(W, (4 * longest + 4) * scale), ph = std::min(H, (7 * lines + 3) * scale);
     for (int y = 0; y < ph; ++y)
