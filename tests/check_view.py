@@ -177,6 +177,20 @@ def check_settings_keys(ctx):
         check(differing_pixels(base, shot) > 0, f"{key} did not change PICTURE")
 
 
+def check_orbit_preview(ctx):
+    """--orbit turns the camera every frame as a drag does: each such frame is a preview at half
+    the width and height (image=32x24 in --stats for a 64x48 window), unless --no-preview; the
+    view changes."""
+    args = ["--preset", "PHASE_2_HARD_SHADOWS", "--size", "64x48", "--frames", "2", "--stats"]
+    out = run([ctx.view, *args, "--orbit", "20", "--screenshot", os.path.join(ctx.work, "orbit.png")])
+    check("frames=2 size=64x48 image=32x24 " in out, "--orbit did not preview at half size")
+    out = run([ctx.view, *args, "--orbit", "20", "--no-preview", "--screenshot", os.path.join(ctx.work, "full.png")])
+    check("frames=2 size=64x48 image=64x48 " in out, "--no-preview still previewed")
+    still = view_shot(ctx, "still.png", *args)
+    check(differing_pixels(still, read_png(os.path.join(ctx.work, "full.png"))) > 100, "--orbit did not turn the view")
+    check(read_png(os.path.join(ctx.work, "orbit.png"))[:2] == (64, 48), "the preview's screenshot is not window-sized")
+
+
 def check_bad_input(ctx):
     """Bad command lines exit 2, bad files and unwritable screenshots 1, each with one line."""
     scene = os.path.join(ctx.work, "bad.yaml")
@@ -302,6 +316,14 @@ def check_x11_window(ctx):
 
         subprocess.run(["xdotool", "key", "p", "F12"], check=True, timeout=30)
         wait_for(shot_of("PHASE_2_NO_SHADOWS", (96, 72)), "a screenshot of PHASE_2_NO_SHADOWS after p, F12")
+        before = read_png(shot)
+        os.remove(shot)
+        # A drag with the left button orbits the camera: the next screenshot shows another view.
+        subprocess.run(["xdotool", "mousemove", "--window", window, "30", "36", "mousedown", "1", "mousemove",
+                        "--window", window, "45", "36", "mousemove", "--window", window, "60", "36", "mouseup", "1",
+                        "key", "F12"], check=True, timeout=30)
+        wait_for(shot_of("PHASE_2_NO_SHADOWS", (96, 72)), "a screenshot after a drag")
+        check(differing_pixels(before, read_png(shot)) > 100, "dragging with the mouse did not turn the camera")
         subprocess.run(["xdotool", "windowsize", window, "120", "90"], check=True, timeout=30)
         wait_for(lambda: "kdrt-view" in subprocess.run(["xdotool", "getwindowname", window], stdout=subprocess.PIPE,
                                                        timeout=30).stdout.decode(), "the title")

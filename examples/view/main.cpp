@@ -24,7 +24,7 @@ namespace {
 const char *const kUsage =
     "usage: kdrt-view [--preset NAME | --scene FILE] [--set KEY=VALUE]... [--size WxH]\n"
     "                 [--threads N] [--seed N] [--frames N [--keys K1,K2,...]] [--orbit DEGREES]\n"
-    "                 [--screenshot OUT.png] [--stats]\n"
+    "                 [--no-preview] [--screenshot OUT.png] [--stats]\n"
     "       kdrt-view --help\n"
     "\n"
     "Shows a preset of the original ray tracer (default PICTURE) or a YAML scene file in a window,\n"
@@ -43,8 +43,11 @@ const char *const kUsage =
     "  --keys K1,K2,...    with --frames: press these keys, one after each frame, before the N\n"
     "                      frames: p P w a S d q e Up Down Left Right PageUp PageDown g m s i\n"
     "                      + - b k [ ] h F12 F2 Esc (S is shift+s)\n"
-    "  --orbit DEGREES     turn the camera about its target by DEGREES every frame, so every frame\n"
-    "                      starts again at one sample a pixel (to measure the frame rate moving)\n"
+    "  --orbit DEGREES     turn the camera about its target by DEGREES every frame, as a drag does,\n"
+    "                      so every frame starts again at one sample a pixel (to measure the frame\n"
+    "                      rate moving)\n"
+    "  --no-preview        full size while the camera moves too (default: the frame after a move\n"
+    "                      is rendered at half the width and height and shown doubled)\n"
     "  --screenshot OUT    the PNG F12 and F2 write (default kdrt-view-NNNN.png, the first free\n"
     "                      number), and --frames at the end\n"
     "  --stats             at exit, print the frames' milliseconds (median, mean) and MRays/s\n"
@@ -63,6 +66,8 @@ const char *const kUsage =
 struct UsageError {
     std::string message;
 };
+
+const double kPi = 3.14159265358979323846;
 
 int fail(const std::string &message, int code)
 {
@@ -213,7 +218,7 @@ int run(int argc, char **argv)
     uint64_t frames = 0;
     double orbit_degrees = 0;
     std::string screenshot, keys_text;
-    bool stats = false, have_keys = false;
+    bool stats = false, have_keys = false, no_preview = false;
 
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
@@ -258,6 +263,8 @@ int run(int argc, char **argv)
             screenshot = value();
         } else if (arg == "--stats") {
             stats = true;
+        } else if (arg == "--no-preview") {
+            no_preview = true;
         } else {
             throw UsageError{"unknown argument '" + arg + "' (see --help)"};
         }
@@ -306,9 +313,11 @@ int run(int argc, char **argv)
     const uint64_t total_frames = keys.size() + frames;  // a frame before each key, then N
     uint64_t frame = 0;
     size_t next_key = 0;
-    bool quit = false, left = false, right = false;
+    bool quit = false, left = false, right = false, moved = false;
     int status = 0;
+    const std::vector<std::string> move_keys = {"w", "a", "S", "d", "q", "e", "Up", "Down", "Left", "Right", "PageUp", "PageDown"};
     auto press = [&](const std::string &name) {
+        if (std::find(move_keys.begin(), move_keys.end(), name) != move_keys.end()) moved = true;
         view::Viewer::KeyResult result;
         if (!viewer.key(name, result, error)) {
             std::fprintf(stderr, "kdrt-view: %s\n", error.c_str());
@@ -339,8 +348,10 @@ int run(int argc, char **argv)
                 window.size(w, h);
                 if (left) viewer.orbit(e.motion.xrel, e.motion.yrel);
                 else viewer.pan(e.motion.xrel, e.motion.yrel, h);
+                moved = true;
             } else if (e.type == SDL_MOUSEWHEEL) {
                 viewer.zoom(e.wheel.y);
+                moved = true;
             }
         }
         if (quit) break;
@@ -348,9 +359,15 @@ int run(int argc, char **argv)
         const common::Stopwatch clock;
         uint32_t w, h;
         window.size(w, h);
-        if (orbit_degrees != 0 && frame > 0) viewer.orbit(orbit_degrees * 100 / 180 * 3.14159265358979323846, 0);
-        const bool rendering = !viewer.converged() || w != viewer.width() || h != viewer.height();
-        if (!viewer.render(w, h, error)) return fail(error, 1);
+        if (orbit_degrees != 0) {
+            viewer.orbit(orbit_degrees * kPi / 180 / 0.01, 0);  // orbit() turns 0.01 radians a pixel
+            moved = true;
+        }
+        // The frame after the camera moved is a preview (half size), unless --no-preview.
+        const bool preview = moved && !no_preview;
+        moved = false;
+        const bool rendering = preview || !viewer.converged() || w != viewer.width() || h != viewer.height();
+        if (!viewer.render(w, h, preview, error)) return fail(error, 1);
         if (!window.show(viewer.compose(), viewer.width(), viewer.height(), error)) return fail(error, 1);
         if (rendering) {
             SDL_SetWindowTitle(window.window, viewer.status().c_str());
@@ -368,9 +385,9 @@ int run(int argc, char **argv)
         double sum = 0;
         for (double ms : frame_ms) sum += ms;
         const size_t n = frame_ms.size();
-        std::printf("frames=%zu size=%ux%u threads=%u frame_ms_median=%.2f frame_ms_mean=%.2f render_ms_median=%.2f "
+        std::printf("frames=%zu size=%ux%u image=%ux%u threads=%u frame_ms_median=%.2f frame_ms_mean=%.2f render_ms_median=%.2f "
                     "fps=%.2f mrays_per_s=%.2f\n",
-                    n, viewer.width(), viewer.height(), options.threads ? options.threads : common::all_cores(),
+                    n, viewer.width(), viewer.height(), viewer.image_width(), viewer.image_height(), options.threads ? options.threads : common::all_cores(),
                     median(frame_ms), n ? sum / double(n) : 0.0, median(render_ms), sum > 0 ? 1000.0 * double(n) / sum : 0.0,
                     render_total_ms > 0 ? double(rays) / (render_total_ms * 1000) : 0.0);
     }

@@ -254,11 +254,14 @@ void Viewer::move(double forward, double right, double up)
     restart();
 }
 
-bool Viewer::render(uint32_t width, uint32_t height, std::string &error)
+bool Viewer::render(uint32_t width, uint32_t height, bool preview, std::string &error)
 {
-    if (converged() && width == acc_.width && height == acc_.height) return true;
+    width_ = width, height_ = height;
+    const uint32_t w = preview ? std::max(1u, width / 2) : width, h = preview ? std::max(1u, height / 2) : height;
+    if (preview) restart();  // a preview is always one sample a pixel
+    if (converged() && w == acc_.width && h == acc_.height) return true;
     kr::RenderOptions options;
-    options.width = width, options.height = height, options.seed = options_.seed;
+    options.width = w, options.height = h, options.seed = options_.seed;
     const common::Stopwatch clock;
     if (!renderer_->accumulate(options, acc_, scheduler_, error)) return false;
     render_ms_ = clock.ms();
@@ -274,12 +277,15 @@ std::string Viewer::status() const
 
 const std::vector<uint32_t> &Viewer::compose()
 {
-    const size_t n = size_t(acc_.width) * acc_.height;
-    pixels_.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-        const unsigned char *p = &acc_.srgb[3 * i];
-        pixels_[i] = 0xFF000000u | uint32_t(p[0]) << 16 | uint32_t(p[1]) << 8 | p[2];
-    }
+    if (width_ == 0) width_ = acc_.width, height_ = acc_.height;
+    pixels_.resize(size_t(width_) * height_);
+    // The image's pixel under each window pixel (the same one but in a preview).
+    for (uint32_t y = 0; y < height_; ++y)
+        for (uint32_t x = 0; x < width_; ++x) {
+            const uint32_t ix = uint32_t(uint64_t(x) * acc_.width / width_), iy = uint32_t(uint64_t(y) * acc_.height / height_);
+            const unsigned char *p = &acc_.srgb[3 * (size_t(iy) * acc_.width + ix)];
+            pixels_[size_t(y) * width_ + x] = 0xFF000000u | uint32_t(p[0]) << 16 | uint32_t(p[1]) << 8 | p[2];
+        }
     if (show_boxes_) draw_boxes();
     if (show_help_) draw_help();
     return pixels_;
@@ -291,8 +297,8 @@ void Viewer::draw_boxes()
 {
     if (!boxes_valid_) boxes_ = renderer_->tree_boxes(box_depth_), boxes_valid_ = true;
     static const uint32_t colours[] = {0xFFFFFFFFu, 0xFFFFD040u, 0xFF40FF60u, 0xFF40C0FFu, 0xFFFF60C0u, 0xFFFF8040u};
-    const int W = int(acc_.width), H = int(acc_.height);
-    const Projection pr(scene_.camera, acc_.width, acc_.height);
+    const int W = int(width_), H = int(height_);
+    const Projection pr(scene_.camera, width_, height_);
     const double near = 1e-3 * std::max(1e-9, kr::length(scene_.camera.target - scene_.camera.position));
     for (const kr::TreeBox &b : boxes_) {
         const uint32_t colour = colours[b.depth % 6];
@@ -341,7 +347,7 @@ void Viewer::draw_help()
         "+ -  leaf size   b  median/SAH builder\n"
         "k  tree boxes   [ ]  their depth\n"
         "F12 F2  screenshot   h  help   Esc  quit";
-    const int W = int(acc_.width), H = int(acc_.height);
+    const int W = int(width_), H = int(height_);
     int lines = 1, longest = 0, column = 0;
     for (const char c : text) {
         if (c == '\n') ++lines, column = 0;
@@ -365,7 +371,7 @@ bool Viewer::screenshot(const std::string &path, std::string &error)
         return false;
     }
     // A key may have started the image again since the last frame (p then F12): render it first.
-    if (acc_.samples == 0 && !render(acc_.width, acc_.height, error)) return false;
+    if (acc_.samples == 0 && !render(width_, height_, false, error)) return false;
     compose();
     std::vector<unsigned char> rgb(pixels_.size() * 3);
     for (size_t i = 0; i < pixels_.size(); ++i) {
@@ -374,11 +380,11 @@ bool Viewer::screenshot(const std::string &path, std::string &error)
     }
     const std::string comment = std::to_string(acc_.samples) + (acc_.samples == 1 ? " sample" : " samples") +
                                 " a pixel, seed " + std::to_string(options_.seed);
-    if (!kr::write_png8(path, acc_.width, acc_.height, rgb,
+    if (!kr::write_png8(path, width_, height_, rgb,
                         {{"Title", scene_.name}, {"Comment", comment}, {"Software", "kdrt-view"}}, error))
         return false;
     std::fprintf(stderr, "kdrt-view: screenshot %s: %s, %ux%u, %u sample%s a pixel\n", path.c_str(), scene_.name.c_str(),
-                 acc_.width, acc_.height, acc_.samples, acc_.samples == 1 ? "" : "s");
+                 width_, height_, acc_.samples, acc_.samples == 1 ? "" : "s");
     return true;
 }
 

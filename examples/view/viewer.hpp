@@ -44,14 +44,18 @@ public:
     void pan(double dx, double dy, uint32_t height);
     void zoom(double steps);
 
-    // Adds a frame of samples at width x height (restarting at a new size), unless converged.
-    bool render(uint32_t width, uint32_t height, std::string &error);
+    // Adds a frame of samples for a width x height window, unless converged. A preview (the
+    // camera being dragged) is rendered at half the width and height, one sample a pixel, and
+    // shown doubled; the image starts again at full size when the preview ends (or at a new size).
+    bool render(uint32_t width, uint32_t height, bool preview, std::string &error);
     bool converged() const { return acc_.width != 0 && acc_.samples >= kMaxSamples; }
-    // What the window shows (0xAARRGGBB, rows from the top): the image, then the kd-tree's boxes
-    // (k) and the help (h).
+    // What the window shows (0xAARRGGBB, rows from the top, width() x height()): the image, then
+    // the kd-tree's boxes (k) and the help (h).
     const std::vector<uint32_t> &compose();
-    uint32_t width() const { return acc_.width; }
-    uint32_t height() const { return acc_.height; }
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+    uint32_t image_width() const { return acc_.width; }   // the image rendered: half while previewing
+    uint32_t image_height() const { return acc_.height; }
 
     // compose()'s pixels as a PNG written atomically, with the scene's name and the samples in
     // its text chunks (Title, Comment, Software).
@@ -85,6 +89,7 @@ private:
     uint32_t box_depth_ = 4;
     std::vector<kr::TreeBox> boxes_;   // to box_depth_, for the current trees
     bool boxes_valid_ = false;
+    uint32_t width_ = 0, height_ = 0;  // the window's
     std::vector<uint32_t> pixels_;
 };
 
