@@ -268,12 +268,21 @@ bool Viewer::render(uint32_t width, uint32_t height, bool preview, std::string &
     return true;
 }
 
-std::string Viewer::status() const
+std::string Viewer::frame_status() const
 {
     const double mrays = render_ms_ > 0 ? double(acc_.rays) / (render_ms_ * 1000) : 0;
-    return "kdrt-view: " + scene_.name + ", " + std::to_string(acc_.samples) + (acc_.samples == 1 ? " sample, " : " samples, ") +
+    return scene_.name + ", " + std::to_string(acc_.samples) + (acc_.samples == 1 ? " sample, " : " samples, ") +
            fixed(render_ms_, 1) + " ms a frame, " + fixed(mrays, 2) + " MRays/s";
 }
+
+std::string Viewer::tree_status() const
+{
+    if (scene_.meshes.empty()) return "no meshes: no kd-tree";
+    return std::string("tree: ") + (builder_ == kr::TreeBuilder::sah ? "SAH" : "median") + ", leaf size " +
+           std::to_string(scene_.settings.max_leaf_size) + ", built in " + fixed(build_ms_, 1) + " ms";
+}
+
+std::string Viewer::status() const { return "kdrt-view: " + frame_status() + "; " + tree_status(); }
 
 const std::vector<uint32_t> &Viewer::compose()
 {
@@ -331,11 +340,7 @@ void Viewer::draw_help()
 {
     const kr::Settings &st = scene_.settings;
     const auto on = [](bool b) { return b ? "on" : "off"; };
-    std::string text = status().substr(11) + "\n";
-    if (scene_.meshes.empty()) text += "no meshes: no kd-tree\n";
-    else
-        text += std::string("tree: ") + (builder_ == kr::TreeBuilder::sah ? "SAH" : "median") + ", leaf size " +
-                std::to_string(st.max_leaf_size) + ", built in " + fixed(build_ms_, 1) + " ms\n";
+    std::string text = frame_status() + "\n" + tree_status() + "\n";
     text += std::string("glass ") + on(st.enable_glass) + ", mirrors " + on(st.enable_mirror) + ", shadow rays " +
             std::to_string(st.shadow_rays) + ",\ninterpolation " + on(st.enable_interpolation) +
             (show_boxes_ ? ", boxes to depth " + std::to_string(box_depth_) : std::string()) + "\n\n";

@@ -65,7 +65,11 @@ public:
     uint32_t samples() const { return acc_.samples; }
     double render_ms() const { return render_ms_; }           // the last frame's accumulate()
     uint64_t rays() const { return acc_.rays; }                // the last frame's rays
-    std::string status() const;                                // the title bar's line
+    // The title bar's line: the frame's (preset, samples, ms, MRays/s), then the tree's (builder,
+    // leaf size, build time).
+    std::string status() const;
+    std::string frame_status() const;
+    std::string tree_status() const;
 
 private:
     bool load(int preset_index, std::string &error, bool &usage_error);
