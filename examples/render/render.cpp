@@ -21,8 +21,6 @@
 #include <cstring>
 #include <limits>
 #include <mutex>
-#include <system_error>
-#include <thread>
 
 namespace kr {
 namespace {

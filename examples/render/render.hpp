@@ -1,5 +1,6 @@
 // kdrt-render's renderer: presets, textures, the tracer and image files, on the scene model of
-// scene.hpp. The command line (main.cpp) and the tests use only this header and scene.hpp.
+// scene.hpp. The command line (main.cpp), kdrt-view (examples/view) and the tests use only this
+// header and scene.hpp.
 #pragma once
 
 #include "scene.hpp"
