@@ -132,7 +132,8 @@ def check_matches_render(ctx):
 
 def check_preset_key(ctx):
     """p moves to the next preset in kdrt-render --list-presets' order, P to the one before,
-    wrapping around; the screenshot changes and names the new one."""
+    wrapping around; the screenshot changes and names the new one. From a --scene file, p goes to
+    the first preset and P to the last."""
     presets = run([ctx.render, "--list-presets"]).split()
     base = view_shot(ctx, "picture.png", "--preset", "PICTURE", "--size", "64x48", "--frames", "1")
     nxt = view_shot(ctx, "p.png", "--preset", "PICTURE", "--size", "64x48", "--frames", "1", "--keys", "p")
@@ -140,6 +141,13 @@ def check_preset_key(ctx):
     check(differing_pixels(base, nxt) > 100, "p did not change the image")
     back = view_shot(ctx, "pp.png", "--preset", "PHASE_1", "--size", "64x48", "--frames", "1", "--keys", "P,P,p")
     check(back[3].get("Title") == presets[-1], f"P,P,p from PHASE_1 gave {back[3].get('Title')!r}")
+    # A scene file opens as kdrt-render reads it; p leaves it for the first preset, P for the last.
+    scene = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "render", "scenes", "cornell.yaml")
+    shot = view_shot(ctx, "scene.png", "--scene", scene, "--size", "64x48", "--frames", "1")
+    check(shot[3].get("Title", "").endswith("cornell.yaml"), f"the scene file's screenshot names {shot[3].get('Title')!r}")
+    for key, preset in (("p", presets[0]), ("P", presets[-1])):
+        shot = view_shot(ctx, f"scene-{key}.png", "--scene", scene, "--size", "64x48", "--frames", "1", "--keys", key)
+        check(shot[3].get("Title") == preset, f"{key} from a scene file gave {shot[3].get('Title')!r}")
 
 
 def check_boxes_key(ctx):
