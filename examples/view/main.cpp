@@ -316,7 +316,8 @@ int run(int argc, char **argv)
     size_t next_key = 0;
     bool quit = false, left = false, right = false, moved = false;
     int status = 0;
-    const std::vector<std::string> move_keys = {"w", "a", "S", "d", "q", "e", "Up", "Down", "Left", "Right", "PageUp", "PageDown"};
+    const std::vector<std::string> move_keys = {"w", "a", "S", "d", "q", "e", "Up", "Down", "Left", "Right",
+                                                "PageUp", "PageDown"};
     auto press = [&](const std::string &name) {
         if (std::find(move_keys.begin(), move_keys.end(), name) != move_keys.end()) moved = true;
         view::Viewer::KeyResult result;
@@ -343,7 +344,7 @@ int run(int argc, char **argv)
             } else if (e.type == SDL_MOUSEBUTTONDOWN || e.type == SDL_MOUSEBUTTONUP) {
                 const bool down = e.type == SDL_MOUSEBUTTONDOWN;
                 if (e.button.button == SDL_BUTTON_LEFT) left = down;
-                else right = down;  // right or middle: pan
+                if (e.button.button == SDL_BUTTON_RIGHT || e.button.button == SDL_BUTTON_MIDDLE) right = down;  // pan
             } else if (e.type == SDL_MOUSEMOTION && (left || right)) {
                 uint32_t w, h;
                 window.size(w, h);
@@ -386,10 +387,13 @@ int run(int argc, char **argv)
         double sum = 0;
         for (double ms : frame_ms) sum += ms;
         const size_t n = frame_ms.size();
-        std::printf("frames=%zu size=%ux%u image=%ux%u threads=%u frame_ms_median=%.2f frame_ms_mean=%.2f render_ms_median=%.2f "
-                    "fps=%.2f mrays_per_s=%.2f\n",
-                    n, viewer.width(), viewer.height(), viewer.image_width(), viewer.image_height(), options.threads ? options.threads : common::all_cores(),
-                    median(frame_ms), n ? sum / double(n) : 0.0, median(render_ms), sum > 0 ? 1000.0 * double(n) / sum : 0.0,
+        // One line of KEY=VALUE: the frames rendered, the last one's window and image sizes, the
+        // frames' wall time (rendering, overlay, the copy to the window) and accumulate()'s alone.
+        std::printf("frames=%zu size=%ux%u image=%ux%u threads=%u frame_ms_median=%.2f frame_ms_mean=%.2f "
+                    "render_ms_median=%.2f fps=%.2f mrays_per_s=%.2f\n",
+                    n, viewer.width(), viewer.height(), viewer.image_width(), viewer.image_height(),
+                    options.threads ? options.threads : common::all_cores(), median(frame_ms), n ? sum / double(n) : 0.0,
+                    median(render_ms), sum > 0 ? 1000.0 * double(n) / sum : 0.0,
                     render_total_ms > 0 ? double(rays) / (render_total_ms * 1000) : 0.0);
     }
     return status;
