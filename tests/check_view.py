@@ -173,6 +173,11 @@ def check_rebuild_keys(ctx):
     for line in ("(SAH, max leaf size 4,", "(SAH, max leaf size 5,", "(SAH, max leaf size 6,", "(median, max leaf size 5,"):
         check(f"tree built in " in out and line in out, f"no build line with '{line}'")
     check(out.count("tree built in") == 5, "not one build line per build")
+    # - stops at 1 (no rebuild), + stops at 64.
+    out = run([ctx.view, *args, "--set", "MAX_LEAF_SIZE=1", "--keys", "-,+"])
+    check(out.count("tree built in") == 2 and "(SAH, max leaf size 2," in out, "- below 1 rebuilt, or + did not")
+    out = run([ctx.view, *args, "--set", "MAX_LEAF_SIZE=64", "--keys", "+"])
+    check(out.count("tree built in") == 1, "+ above 64 rebuilt")
 
 
 def check_settings_keys(ctx):

@@ -192,7 +192,8 @@ bool Viewer::key(const std::string &name, KeyResult &result, std::string &error)
     else if (name == "i") st.enable_interpolation = !st.enable_interpolation, restart();
     else if (name == "+" || name == "-") {
         const uint32_t old = st.max_leaf_size;
-        st.max_leaf_size = name == "+" ? std::min(64u, old + 1) : std::max(1u, old - 1);
+        // 1 to 64 (0, no tree, only from --set: too slow to show a mesh in a window).
+        st.max_leaf_size = name == "+" ? std::min(64u, old + 1) : old > 1 ? old - 1 : old;
         if (st.max_leaf_size != old) return rebuild(error);
     } else if (name == "b") {
         builder_ = builder_ == kr::TreeBuilder::sah ? kr::TreeBuilder::median : kr::TreeBuilder::sah;
