@@ -93,7 +93,7 @@ const std::vector<std::string> &key_names()
     return names;
 }
 
-Viewer::Viewer(const Options &options) : options_(options), scheduler_(options.threads) {}
+Viewer::Viewer(const Options &options) : options_(options) {}
 
 bool Viewer::open(std::string &error, bool &usage_error)
 {
@@ -136,7 +136,10 @@ bool Viewer::load(int preset_index, std::string &error, bool &usage_error)
             return false;
         }
     }
-    if (!kr::load_meshes(next, error) || !kr::load_textures(next, error)) return false;
+    scheduler_.reset();  // no threads of ours while load_mesh forks (see viewer.hpp)
+    const bool loaded = kr::load_meshes(next, error) && kr::load_textures(next, error);
+    scheduler_.reset(new common::ThreadScheduler(options_.threads));
+    if (!loaded) return false;
     std::string sources;
     for (const kr::MeshInstance &m : next.meshes) sources += (sources.empty() ? "" : ", ") + m.source;
     std::fprintf(stderr, "kdrt-view: %s, meshes: %s\n", next.name.c_str(), sources.empty() ? "none" : sources.c_str());
@@ -264,7 +267,7 @@ bool Viewer::render(uint32_t width, uint32_t height, bool preview, std::string &
     kr::RenderOptions options;
     options.width = w, options.height = h, options.seed = options_.seed;
     const common::Stopwatch clock;
-    if (!renderer_->accumulate(options, acc_, scheduler_, error)) return false;
+    if (!renderer_->accumulate(options, acc_, *scheduler_, error)) return false;
     render_ms_ = clock.ms();
     return true;
 }

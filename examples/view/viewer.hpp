@@ -80,7 +80,10 @@ private:
     void draw_help();
 
     Options options_;
-    common::ThreadScheduler scheduler_;
+    // Frames' tiles run on these threads. They are stopped while meshes load: common::load_mesh
+    // forks a loader process, and a thread starting at that moment (holding the allocator's lock,
+    // as ASan's does while a thread sets up) would leave the child deadlocked.
+    std::unique_ptr<common::ThreadScheduler> scheduler_;
     int preset_index_ = -1;            // into kr::preset_names(); -1: the scene file
     kr::Scene scene_;
     std::unique_ptr<kr::Renderer> renderer_;
