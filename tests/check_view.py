@@ -81,7 +81,7 @@ def read_png(path):
     return width, height, rows, text
 
 
-def run(command, expect_status=0, env=None, timeout=120):
+def run(command, expect_status=0, env=None, timeout=60):
     """Runs command; returns its standard error and output together. Fails on another status."""
     full_env = dict(os.environ)
     full_env.update(env or {})
@@ -171,7 +171,7 @@ def check_rebuild_keys(ctx):
     args = ["--preset", "BENCHMARKS", "--size", "32x24", "--frames", "1"]
     out = run([ctx.view, *args, "--keys", "+,+,-,b"])
     for line in ("(SAH, max leaf size 4,", "(SAH, max leaf size 5,", "(SAH, max leaf size 6,", "(median, max leaf size 5,"):
-        check(f"tree built in " in out and line in out, f"no build line with '{line}'")
+        check("tree built in " in out and line in out, f"no build line with '{line}'")
     check(out.count("tree built in") == 5, "not one build line per build")
     # - stops at 1 (no rebuild), + stops at 64.
     out = run([ctx.view, *args, "--set", "MAX_LEAF_SIZE=1", "--keys", "-,+"])
