@@ -128,6 +128,13 @@ def check_matches_render(ctx):
         check(shot[3].get("Comment", "").startswith(f"{frames} sample"), f"Comment {shot[3].get('Comment')!r}")
         differ = differing_pixels(shot, ref)
         check(differ == 0, f"{preset}, {frames} frames: {differ} pixels differ from kdrt-render's")
+    # stb_image (through kdrt-render's --reference) decodes the screenshot as well: 8-bit sRGB
+    # against the same render's linear floats, so the RMSE is the rounding's and the clamping's
+    # to [0, 1] (0.006 here; an image misread, or another one, is ten times that or more).
+    out = run([ctx.render, "--preset", "PICTURE", "--size", "64x48", "--seed", "7", "--set", "NSAMPLES=3",
+               "--reference", os.path.join(ctx.work, "view-PICTURE-3.png"), "-o", os.path.join(ctx.work, "again.png")])
+    rmse = [float(l[5:]) for l in out.splitlines() if l.startswith("rmse=")]
+    check(rmse and rmse[0] < 0.02, f"stb_image's reading of the screenshot: {rmse}")
 
 
 def check_preset_key(ctx):
