@@ -296,16 +296,20 @@ int run(int argc, char **argv)
         }
     }
 
-    view::Viewer viewer(options);
+    // An unknown preset is a bad command line, display or not; then the window, so that without a
+    // display that is all there is to say; then the scene (its meshes may take a while).
     std::string error;
+    kr::Scene probe;
+    if (options.scene_file.empty() && !options.preset.empty() && !kr::make_preset(options.preset, probe, error))
+        throw UsageError{error};
+    Window window;
+    if (!window.open(width, height, error)) return fail(error, 1);
+    view::Viewer viewer(options);
     bool usage_error = false;
     if (!viewer.open(error, usage_error)) {
         if (usage_error) throw UsageError{error};
         return fail(error, 1);
     }
-
-    Window window;
-    if (!window.open(width, height, error)) return fail(error, 1);
 
     std::vector<double> frame_ms, render_ms;
     uint64_t rays = 0;
