@@ -2,6 +2,7 @@
 // path refracts as optics says (checked against an exact double-precision trace and the paraxial
 // ball-lens formula), and image files are written atomically and read back.
 #include "render.hpp"
+#include "common/thread_scheduler.hpp"
 #include "temp_dir.hpp"
 
 #include <catch2/catch.hpp>
@@ -135,6 +136,80 @@ TEST_CASE("render: the seed changes the jittered samples, and nothing else does"
     const kr::Image c = render_scene(scene, 2, 40, 30, 2);
     CHECK(fnv1a(a.rgb) == fnv1a(b.rgb));
     CHECK(fnv1a(a.rgb) != fnv1a(c.rgb));
+}
+
+TEST_CASE("render: progressive accumulation after n frames is render()'s image with NSAMPLES = n", "[render][progressive]")
+{
+    // kdrt-view's frames: the first the pixels' centres, the second two jittered samples, then one
+    // more a frame; the 8-bit image each frame is the PNG's pixels of render() at that many samples.
+    for (const char *name : {"PHASE_2_SOFT_SHADOWS", "PHASE_4_REFRACTION"}) {
+        INFO("preset " << name);
+        kr::Scene scene;
+        std::string error;
+        REQUIRE(kr::make_preset(name, scene, error));
+        REQUIRE(kr::load_meshes(scene, error));
+        kr::Renderer renderer;
+        REQUIRE(renderer.prepare(scene, 2, error));
+        common::ThreadScheduler scheduler(3);
+        kr::RenderOptions options;
+        options.width = 37, options.height = 23, options.seed = 9;
+        kr::Accumulation acc;
+        for (uint32_t n = 1; n <= 4; ++n) {
+            INFO("frame " << n);
+            REQUIRE(renderer.accumulate(options, acc, scheduler, error));
+            CHECK(acc.samples == n);
+            CHECK(acc.rays >= uint64_t(37 * 23) * (n == 2 ? 2 : 1));
+            scene.settings.nsamples = n;
+            const kr::Image image = render_scene(scene, 2, 37, 23, 9);
+            REQUIRE(acc.srgb.size() == image.rgb.size());
+            size_t differ = 0;
+            for (size_t i = 0; i < image.rgb.size(); ++i) differ += acc.srgb[i] != kr::linear_to_srgb8(image.rgb[i]);
+            CHECK(differ == 0);
+            for (size_t p = 0; p < size_t(37) * 23; ++p) {  // the sums are render()'s, before rounding
+                const float mean = float(acc.sum[p * 3] / n);
+                if (mean != image.rgb[p * 3]) {
+                    FAIL_CHECK("pixel " << p << ": " << mean << " against " << image.rgb[p * 3]);
+                    break;
+                }
+            }
+        }
+        options.width = 20;  // a new size starts again
+        REQUIRE(renderer.accumulate(options, acc, scheduler, error));
+        CHECK(acc.samples == 1);
+        CHECK(acc.srgb.size() == size_t(20) * 23 * 3);
+    }
+}
+
+TEST_CASE("render: PNG text chunks, and the kd-tree's boxes by depth", "[render][image][progressive]")
+{
+    TempDir dir;
+    const std::string path = (dir.path / "text.png").string();
+    std::string error;
+    const std::vector<unsigned char> rgb = {0, 128, 255, 10, 20, 30};
+    REQUIRE(kr::write_png8(path, 2, 1, rgb, {{"Title", "PICTURE"}, {"Comment", "4 samples"}}, error));
+    std::ifstream in(path, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    CHECK(bytes.find(std::string("tEXtTitle") + '\0' + "PICTURE") == 37);  // right after IHDR
+    CHECK(bytes.find(std::string("tEXtComment") + '\0' + "4 samples") != std::string::npos);
+    int w = 0, h = 0, c = 0;
+    unsigned char *pixels = stbi_load(path.c_str(), &w, &h, &c, 3);
+    REQUIRE(pixels);
+    CHECK(std::vector<unsigned char>(pixels, pixels + 6) == rgb);
+    stbi_image_free(pixels);
+    CHECK_FALSE(kr::write_png8((dir.path / "bad.png").string(), 2, 1, rgb, {{"", "no keyword"}}, error));
+
+    kr::Scene scene;
+    REQUIRE(kr::make_preset("BENCHMARKS", scene, error));
+    REQUIRE(kr::load_meshes(scene, error));
+    kr::Renderer renderer;
+    REQUIRE(renderer.prepare(scene, 1, error));
+    const std::vector<kr::TreeBox> roots = renderer.tree_boxes(0), deeper = renderer.tree_boxes(3);
+    CHECK(roots.size() == scene.meshes.size());
+    CHECK(deeper.size() > roots.size());
+    for (const kr::TreeBox &b : deeper) {
+        CHECK(b.depth <= 3);
+        CHECK(b.lo.x <= b.hi.x);
+    }
 }
 
 TEST_CASE("render: a ray through a glass sphere's centre passes undeviated", "[render][glass]")

@@ -19,6 +19,10 @@ PACKAGES=(
   clang               # CI's sanitizer build and the fuzz targets (tests/fuzz)
   libclang-rt-14-dev  # Clang's ASan, UBSan and libFuzzer runtimes (clang only recommends them)
   llvm                # llvm-symbolizer: function names and lines in the sanitizers' reports
+  libsdl2-dev         # kdrt-view's window (examples/view; built only when SDL2 is found)
+  xvfb                # kdrt-view's tests: a virtual X server (xvfb-run)
+  xauth               # xvfb-run's authority file
+  xdotool             # kdrt-view's tests: key events sent to its real X11 window
 )
 
 usage() {

@@ -35,34 +35,33 @@ std::string lower_extension(const std::string &path)
     return ext;
 }
 
-unsigned char linear_to_srgb8(float v)
-{
-    const double c = std::min(1.0, std::max(0.0, double(v)));  // clamp: no tone curve beyond it
-    const double s = c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1 / 2.4) - 0.055;
-    return (unsigned char)std::lround(255.0 * s);
-}
-
 float srgb8_to_linear(unsigned char v)
 {
     const double c = v / 255.0;
     return float(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
 }
 
-// The PNG encoded in memory, then written whole by common::write_file_atomically.
 bool write_png(const std::string &path, const Image &image, std::string &error)
 {
     std::vector<unsigned char> rgb(image.rgb.size());
     for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = linear_to_srgb8(image.rgb[i]);
-    std::string png;
-    const auto append = [](void *context, void *data, int size) {
-        static_cast<std::string *>(context)->append(static_cast<const char *>(data), size_t(size));
-    };
-    if (!stbi_write_png_to_func(append, &png, int(image.width), int(image.height), 3, rgb.data(),
-                                int(image.width) * 3)) {
-        error = "cannot write '" + path + "': cannot encode the PNG";
-        return false;
+    return write_png8(path, image.width, image.height, rgb, {}, error);
+}
+
+// PNG's CRC-32 (ISO 3309, the polynomial 0xEDB88320 reflected), of a chunk's type and data.
+uint32_t png_crc(const std::string &bytes)
+{
+    uint32_t crc = 0xFFFFFFFFu;
+    for (const unsigned char b : bytes) {
+        crc ^= b;
+        for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
     }
-    return common::write_file_atomically(path, png, error);
+    return crc ^ 0xFFFFFFFFu;
+}
+
+void append_be32(std::string &out, uint32_t v)
+{
+    for (int shift = 24; shift >= 0; shift -= 8) out.push_back(char((v >> shift) & 0xFF));
 }
 
 bool write_exr(const std::string &tmp, const Image &image, bool exr_float, std::string &error)
@@ -129,6 +128,46 @@ bool read_exr(const std::string &path, Image &image, std::string &error)
 }
 
 }  // namespace
+
+unsigned char linear_to_srgb8(float v)
+{
+    const double c = std::min(1.0, std::max(0.0, double(v)));  // clamp: no tone curve beyond it
+    const double s = c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1 / 2.4) - 0.055;
+    return (unsigned char)std::lround(255.0 * s);
+}
+
+// The PNG encoded in memory, then written whole by common::write_file_atomically.
+bool write_png8(const std::string &path, uint32_t width, uint32_t height, const std::vector<unsigned char> &rgb,
+                const std::vector<std::pair<std::string, std::string>> &text, std::string &error)
+{
+    if (width == 0 || height == 0 || rgb.size() != size_t(width) * height * 3) {
+        error = "cannot write '" + path + "': the image is empty or inconsistent";
+        return false;
+    }
+    std::string png;
+    const auto append = [](void *context, void *data, int size) {
+        static_cast<std::string *>(context)->append(static_cast<const char *>(data), size_t(size));
+    };
+    if (!stbi_write_png_to_func(append, &png, int(width), int(height), 3, rgb.data(), int(width) * 3)) {
+        error = "cannot write '" + path + "': cannot encode the PNG";
+        return false;
+    }
+    // tEXt chunks go after IHDR (the 8-byte signature, then IHDR's 4 + 4 + 13 + 4 bytes).
+    std::string chunks;
+    for (const auto &kv : text) {
+        if (kv.first.empty() || kv.first.size() > 79 || kv.first.find('\0') != std::string::npos ||
+            kv.second.find('\0') != std::string::npos) {
+            error = "cannot write '" + path + "': bad PNG text keyword '" + kv.first + "'";
+            return false;
+        }
+        const std::string body = "tEXt" + kv.first + '\0' + kv.second;
+        append_be32(chunks, uint32_t(body.size() - 4));
+        chunks += body;
+        append_be32(chunks, png_crc(body));
+    }
+    png.insert(33, chunks);
+    return common::write_file_atomically(path, png, error);
+}
 
 bool check_image_extension(const std::string &path, std::string &error)
 {

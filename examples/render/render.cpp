@@ -18,10 +18,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <mutex>
-#include <system_error>
-#include <thread>
 
 namespace kr {
 namespace {
@@ -41,6 +40,9 @@ using common::Rng;
 struct Ray {
     Vec3 origin, dir;  // dir unit length
 };
+
+// Rays traced by this thread (every intersect and occluded call), for kdrt-view's MRays/s.
+thread_local uint64_t t_rays = 0;
 
 enum class HitKind { none, sphere, quad, mesh, light };
 
@@ -95,6 +97,67 @@ struct MeshData {
     Vec3 box_lo, box_hi;               // for textured meshes' (u, v)
 };
 
+// The camera's frame for a width x height image, checked once a render.
+struct View {
+    uint32_t width = 0, height = 0;
+    Vec3 position, forward, right, up;
+    double tan_half = 0, aspect = 0;
+    kdrt_media_stack air;
+};
+
+bool make_view(const Scene &sc, uint32_t W, uint32_t H, View &view, std::string &error)
+{
+    if (W == 0 || H == 0) {
+        error = "the image has no pixels";
+        return false;
+    }
+    const Camera &cam = sc.camera;
+    const Vec3 forward = normalize(cam.target - cam.position);
+    const Vec3 right = normalize(cross(forward, cam.up));
+    if (!(dot(forward, forward) > 0)) {
+        error = "the camera's target is its position: it looks nowhere";
+        return false;
+    }
+    if (!(dot(right, right) > 0)) {
+        error = "the camera's up vector is zero or along its view direction";
+        return false;
+    }
+    if (!(cam.fov_degrees > 0 && cam.fov_degrees < 180)) {
+        error = "the camera's field of view must lie between 0 and 180 degrees";
+        return false;
+    }
+    view.width = W, view.height = H;
+    view.position = cam.position, view.forward = forward, view.right = right;
+    view.up = cross(right, forward);
+    view.tan_half = std::tan(0.5 * cam.fov_degrees * kPi / 180.0);
+    view.aspect = double(W) / H;
+    if (kdrt_media_init(&view.air, float(sc.settings.air_index_medium)) != KDRT_SUCCESS) {
+        error = "AIR_INDEX_MEDIUM must be a positive finite index";
+        return false;
+    }
+    return true;
+}
+
+// The tile scheduler of render() and accumulate(): 16x16 tiles handed out in order to the
+// scheduler's threads (a tile a task); tile(x0, y0, x1, y1) covers [x0, x1) x [y0, y1). Each pixel
+// only ever touches its own stream and slot, so the image does not depend on the threads.
+template <typename TileFn>
+void for_each_tile(common::ThreadScheduler &scheduler, uint32_t W, uint32_t H, const TileFn &tile_fn)
+{
+    struct Job {
+        uint32_t W, H, tiles_x;
+        const TileFn *fn;
+    };
+    const uint32_t tile = 16, tiles_x = (W + tile - 1) / tile, tiles_y = (H + tile - 1) / tile;
+    Job job{W, H, tiles_x, &tile_fn};
+    const kdrt_scheduler hooks = scheduler.hooks();
+    hooks.run(hooks.user, [](void *data, uint32_t t) {
+        const Job &j = *static_cast<const Job *>(data);
+        const uint32_t x0 = (t % j.tiles_x) * 16, y0 = (t / j.tiles_x) * 16;
+        (*j.fn)(x0, y0, std::min(j.W, x0 + 16), std::min(j.H, y0 + 16));
+    }, &job, tiles_x * tiles_y);
+}
+
 }  // namespace
 
 struct Renderer::Impl {
@@ -120,6 +183,8 @@ struct Renderer::Impl {
     Vec3 texture(int texture_index, double u, double v) const;
     Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, Rng &rng) const;
     Vec3 radiance(const Ray &ray, uint32_t bounces_left, const kdrt_media_stack &media, Rng &rng) const;
+    // One camera ray's colour: through the pixel's centre, or jittered over the pixel.
+    Vec3 sample(const View &view, uint32_t x, uint32_t y, bool jitter, Rng &rng) const;
 
     // One glass surface: where the ray goes next, and how the stack changes. Shared by the
     // shading and trace_specular_path. `reflect` forces the reflected branch (FRESNEL).
@@ -146,6 +211,7 @@ struct Renderer::Impl {
 
 bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
 {
+    ++t_rays;
     hit = Hit();
     const Scene &sc = *scene;
     for (size_t i = 0; i < sc.spheres.size(); ++i) {
@@ -223,6 +289,7 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
 // not occluders; glass casts a full shadow, as in the original).
 bool Renderer::Impl::occluded(Vec3 origin, Vec3 target) const
 {
+    ++t_rays;
     const Vec3 d = target - origin;
     const double dist = length(d);
     if (!(dist > 0)) return false;
@@ -418,12 +485,22 @@ Vec3 Renderer::Impl::radiance(const Ray &ray, uint32_t bounces_left, const kdrt_
     return color;
 }
 
+Vec3 Renderer::Impl::sample(const View &v, uint32_t x, uint32_t y, bool jitter, Rng &rng) const
+{
+    const uint32_t W = v.width, H = v.height;
+    const double jx = jitter ? rng.uniform() : 0.5, jy = jitter ? rng.uniform() : 0.5;
+    const double sx = (2.0 * (x + jx) / W - 1.0) * v.tan_half * v.aspect;
+    const double sy = (1.0 - 2.0 * (y + jy) / H) * v.tan_half;
+    const Ray ray{v.position, normalize(v.forward + sx * v.right + sy * v.up)};
+    return radiance(ray, scene->settings.max_bounces, v.air, rng);
+}
+
 Renderer::Renderer() : impl_(new Impl) {}
 Renderer::~Renderer() = default;
 
 double Renderer::build_seconds() const { return impl_->build_seconds; }
 
-bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error)
+bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder)
 {
     impl_->clear();
     impl_->scene = &scene;
@@ -449,6 +526,7 @@ bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error)
         const kdrt_triangles view = mesh.view();
         kdrt_build_options options = kdrt_default_build_options();
         options.max_leaf_size = scene.settings.max_leaf_size;
+        if (builder == TreeBuilder::median) options.builder = KDRT_BUILDER_MEDIAN;
         options.scheduler = scheduler.hooks();
         kdrt_build_report report;
         const kdrt_result r = kdrt_tree_build(&view, &options, &md.tree, &report);
@@ -523,43 +601,15 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
         return false;
     }
     const Scene &sc = *im.scene;
-    if (options.width == 0 || options.height == 0) {
-        error = "the image has no pixels";
-        return false;
-    }
+    View view;
+    if (!make_view(sc, options.width, options.height, view, error)) return false;
     const uint32_t W = options.width, H = options.height;
     image.width = W, image.height = H;
     image.rgb.assign(size_t(W) * H * 3, 0.0f);
-
-    const Camera &cam = sc.camera;
-    const Vec3 forward = normalize(cam.target - cam.position);
-    const Vec3 right = normalize(cross(forward, cam.up));
-    if (!(dot(forward, forward) > 0)) {
-        error = "the camera's target is its position: it looks nowhere";
-        return false;
-    }
-    if (!(dot(right, right) > 0)) {
-        error = "the camera's up vector is zero or along its view direction";
-        return false;
-    }
-    if (!(cam.fov_degrees > 0 && cam.fov_degrees < 180)) {
-        error = "the camera's field of view must lie between 0 and 180 degrees";
-        return false;
-    }
-    const Vec3 up = cross(right, forward);
-    const double tan_half = std::tan(0.5 * cam.fov_degrees * kPi / 180.0);
-    const double aspect = double(W) / H;
     const Settings &st = sc.settings;
-    kdrt_media_stack air;
-    if (kdrt_media_init(&air, float(st.air_index_medium)) != KDRT_SUCCESS) {
-        error = "AIR_INDEX_MEDIUM must be a positive finite index";
-        return false;
-    }
 
-    // 16x16 tiles handed out in order; each pixel only ever touches its own stream and slot.
-    const uint32_t tile = 16, tiles_x = (W + tile - 1) / tile, tiles_y = (H + tile - 1) / tile;
-    const uint32_t tiles = tiles_x * tiles_y;
-    std::atomic<uint32_t> next_tile(0), done_tiles(0);
+    const uint32_t tiles = ((W + 15) / 16) * ((H + 15) / 16);
+    std::atomic<uint32_t> done_tiles(0);
     std::mutex progress_mutex;
     const auto start = std::chrono::steady_clock::now();
     auto last_report = start;
@@ -579,45 +629,123 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
                      width - filled, "..............................", int(100 * fraction), elapsed, eta);
         std::fflush(stderr);
     };
-    auto work = [&]() {
-        for (uint32_t t; (t = next_tile.fetch_add(1)) < tiles;) {
-            const uint32_t x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
-            for (uint32_t y = y0; y < std::min(H, y0 + tile); ++y)
-                for (uint32_t x = x0; x < std::min(W, x0 + tile); ++x) {
-                    const uint64_t pixel = uint64_t(y) * W + x;
-                    Rng rng = pixel_rng(options.seed, options.frame, pixel);
-                    Vec3 sum;
-                    for (uint32_t s = 0; s < st.nsamples; ++s) {
-                        // One sample: the pixel's centre; more: jittered over the pixel.
-                        const double jx = st.nsamples > 1 ? rng.uniform() : 0.5, jy = st.nsamples > 1 ? rng.uniform() : 0.5;
-                        const double sx = (2.0 * (x + jx) / W - 1.0) * tan_half * aspect;
-                        const double sy = (1.0 - 2.0 * (y + jy) / H) * tan_half;
-                        const Ray ray{cam.position, normalize(forward + sx * right + sy * up)};
-                        sum = sum + im.radiance(ray, st.max_bounces, air, rng);
-                    }
-                    float *px = &image.rgb[pixel * 3];
-                    px[0] = float(sum.x / st.nsamples), px[1] = float(sum.y / st.nsamples), px[2] = float(sum.z / st.nsamples);
-                }
-            report(++done_tiles);
-        }
-    };
-    const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-    std::vector<std::thread> helpers;
-    for (unsigned i = 1; i < threads; ++i) {
-        try {
-            helpers.emplace_back(work);
-        } catch (const std::system_error &) {
-            break;  // render with the threads there are
-        }
-    }
-    work();
-    for (std::thread &t : helpers) t.join();
+    common::ThreadScheduler scheduler(options.threads);
+    for_each_tile(scheduler, W, H, [&](uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1) {
+        for (uint32_t y = y0; y < y1; ++y)
+            for (uint32_t x = x0; x < x1; ++x) {
+                const uint64_t pixel = uint64_t(y) * W + x;
+                Rng rng = pixel_rng(options.seed, options.frame, pixel);
+                Vec3 sum;
+                for (uint32_t s = 0; s < st.nsamples; ++s) sum = sum + im.sample(view, x, y, st.nsamples > 1, rng);
+                float *px = &image.rgb[pixel * 3];
+                px[0] = float(sum.x / st.nsamples), px[1] = float(sum.y / st.nsamples), px[2] = float(sum.z / st.nsamples);
+            }
+        report(++done_tiles);
+    });
     if (options.progress) {
         all_joined = true;
         report(tiles);
         std::fputc('\n', stderr);
     }
     return true;
+}
+
+namespace {
+
+// linear_to_srgb8 without its pow: the 255 linear values where its result steps up, found once by
+// bisection over the floats (the function rises with v), then 8 comparisons a channel.
+struct SrgbSteps {
+    float step[256];  // step[k]: the least float that encodes to k or more (step[0] unused)
+    SrgbSteps()
+    {
+        for (int k = 1; k < 256; ++k) {
+            // Non-negative floats order as their bit patterns; bisect on those.
+            uint32_t lo = 0, hi = 0x3F800000u;  // encodes 0 .. 1.0f (255)
+            while (lo < hi) {
+                const uint32_t mid = lo + (hi - lo) / 2;
+                float f;
+                std::memcpy(&f, &mid, sizeof f);
+                if (linear_to_srgb8(f) >= k) hi = mid;
+                else lo = mid + 1;
+            }
+            std::memcpy(&step[k], &lo, sizeof lo);
+        }
+    }
+    unsigned char encode(float v) const
+    {
+        int k = 0;  // the last step v reaches; none for negatives and NaN, which encode to 0
+        for (int bit = 128; bit > 0; bit >>= 1)
+            if (k + bit <= 255 && v >= step[k + bit]) k += bit;
+        return (unsigned char)k;
+    }
+};
+
+}  // namespace
+
+bool Renderer::accumulate(const RenderOptions &options, Accumulation &acc, common::ThreadScheduler &scheduler,
+                          std::string &error) const
+{
+    static const SrgbSteps srgb;
+    const Impl &im = *impl_;
+    if (!im.scene) {
+        error = "render before prepare";
+        return false;
+    }
+    View view;
+    if (!make_view(*im.scene, options.width, options.height, view, error)) return false;
+    const uint32_t W = options.width, H = options.height;
+    if (acc.width != W || acc.height != H || acc.sum.size() != size_t(W) * H * 3) {
+        acc.width = W, acc.height = H, acc.samples = 0;
+        acc.sum.assign(size_t(W) * H * 3, 0.0);
+        acc.stream.assign(size_t(W) * H, 0);
+        acc.srgb.assign(size_t(W) * H * 3, 0);
+    }
+    // render()'s NSAMPLES = 1 is the pixel's centre and more are jittered, so the second call
+    // starts again with two jittered samples; the sums add in render()'s order.
+    const bool restart = acc.samples <= 1;
+    const uint32_t count = acc.samples == 1 ? 2 : 1;
+    const uint32_t total = restart ? count : acc.samples + 1;
+    const bool jitter = total > 1;
+    std::atomic<uint64_t> rays(0);
+    for_each_tile(scheduler, W, H, [&](uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1) {
+        const uint64_t rays_before = t_rays;
+        for (uint32_t y = y0; y < y1; ++y)
+            for (uint32_t x = x0; x < x1; ++x) {
+                const uint64_t pixel = uint64_t(y) * W + x;
+                Rng rng = restart ? pixel_rng(options.seed, options.frame, pixel) : Rng::from_state(acc.stream[pixel]);
+                Vec3 sum;
+                double *px = &acc.sum[pixel * 3];
+                if (!restart) sum = Vec3{px[0], px[1], px[2]};
+                for (uint32_t s = 0; s < count; ++s) sum = sum + im.sample(view, x, y, jitter, rng);
+                px[0] = sum.x, px[1] = sum.y, px[2] = sum.z;
+                acc.stream[pixel] = rng.state;
+                unsigned char *out = &acc.srgb[pixel * 3];
+                out[0] = srgb.encode(float(sum.x / total));
+                out[1] = srgb.encode(float(sum.y / total));
+                out[2] = srgb.encode(float(sum.z / total));
+            }
+        rays += t_rays - rays_before;
+    });
+    acc.samples = total;
+    acc.rays = rays;
+    return true;
+}
+
+std::vector<TreeBox> Renderer::tree_boxes(uint32_t max_depth) const
+{
+    std::vector<TreeBox> boxes;
+    for (const MeshData &md : impl_->meshes) {
+        std::vector<uint32_t> stack{0};
+        while (!stack.empty()) {
+            const uint32_t index = stack.back();
+            stack.pop_back();
+            kdrt_node_info info;
+            if (kdrt_tree_node(md.tree, index, &info) != KDRT_SUCCESS) continue;
+            boxes.push_back({to_vec(info.bounds.min), to_vec(info.bounds.max), info.depth, info.is_leaf != 0});
+            if (!info.is_leaf && info.depth < max_depth) stack.push_back(info.above), stack.push_back(info.below);
+        }
+    }
+    return boxes;
 }
 
 }  // namespace kr

@@ -1,5 +1,6 @@
 // kdrt-render's renderer: presets, textures, the tracer and image files, on the scene model of
-// scene.hpp. The command line (main.cpp) and the tests use only this header and scene.hpp.
+// scene.hpp. The command line (main.cpp), kdrt-view (examples/view) and the tests use only this
+// header and scene.hpp.
 #pragma once
 
 #include "scene.hpp"
@@ -7,7 +8,12 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
+
+namespace common {
+class ThreadScheduler;  // common/thread_scheduler.hpp
+}
 
 namespace kr {
 
@@ -44,6 +50,13 @@ bool read_image(const std::string &path, Image &image, std::string &error);
 bool read_srgb_image(const std::string &path, Image &image, std::string &error);
 // true when path ends in .png or .exr; else false with a message.
 bool check_image_extension(const std::string &path, std::string &error);
+// An 8-bit sRGB image (3 bytes a pixel, rows from the top) as a PNG, written atomically as
+// write_image's PNGs are (whose bytes are these for the pixels linear_to_srgb8 gives), with one
+// tEXt chunk per (keyword, text) pair after the header (Latin-1 keywords of 1 to 79 characters).
+bool write_png8(const std::string &path, uint32_t width, uint32_t height, const std::vector<unsigned char> &rgb,
+                const std::vector<std::pair<std::string, std::string>> &text, std::string &error);
+// A linear value as write_image's PNGs store it: clamped to [0, 1], sRGB-encoded, rounded.
+unsigned char linear_to_srgb8(float v);
 // Root mean square difference over every pixel and channel; the sizes must match.
 bool image_rmse(const Image &a, const Image &b, double &rmse, std::string &error);
 
@@ -56,6 +69,26 @@ struct RenderOptions {
     uint32_t frame = 0;
     bool progress = false;  // progress bar with ETA on stderr
 };
+
+// Progressive rendering (kdrt-view): the sums of each pixel's samples so far and where its random
+// stream stopped, so that frame after frame adds samples to the same image.
+struct Accumulation {
+    uint32_t width = 0, height = 0;
+    uint32_t samples = 0;               // samples a pixel so far; set to 0 to start again
+    std::vector<double> sum;            // 3 a pixel
+    std::vector<uint64_t> stream;       // each pixel's random stream (common::Rng's state)
+    std::vector<unsigned char> srgb;    // the mean, as linear_to_srgb8 encodes it, 3 bytes a pixel
+    uint64_t rays = 0;                  // rays the last accumulate() traced (camera, bounce, shadow)
+};
+
+// The kd-tree's node boxes, for drawing them (kdrt-view's `k`).
+struct TreeBox {
+    Vec3 lo, hi;
+    uint32_t depth = 0;
+    bool leaf = false;
+};
+
+enum class TreeBuilder { sah, median };
 
 // One point where a ray met a mirror or glass surface, and the direction it left in.
 struct PathEvent {
@@ -75,13 +108,24 @@ public:
     Renderer(const Renderer &) = delete;
     Renderer &operator=(const Renderer &) = delete;
 
-    // Builds the trees (on `threads` threads, 0 = every core), after load_meshes. false with a
-    // message when a tree cannot be built.
-    bool prepare(const Scene &scene, unsigned threads, std::string &error);
+    // Builds the trees (on `threads` threads, 0 = every core; by the SAH unless told otherwise),
+    // after load_meshes. false with a message when a tree cannot be built.
+    bool prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder = TreeBuilder::sah);
     double build_seconds() const;
 
-    // Renders the scene into image (resized to options' size).
+    // Renders the scene into image (resized to options' size): NSAMPLES samples a pixel, one at
+    // the pixel's centre, more jittered over it, in 16x16 tiles on options.threads threads.
     bool render(const RenderOptions &options, Image &image, std::string &error) const;
+
+    // Adds samples to acc (restarted at options' size when its size differs), through the same
+    // tiles on `scheduler`'s threads, and fills acc.srgb. The first call takes one sample a pixel,
+    // the second starts again with two, every later one adds one: after n calls the mean is, bit
+    // for bit, render()'s image with NSAMPLES = n (same seed and frame). NSAMPLES is not read.
+    bool accumulate(const RenderOptions &options, Accumulation &acc, common::ThreadScheduler &scheduler,
+                    std::string &error) const;
+
+    // Every mesh tree's node boxes down to max_depth (the root is depth 0), parents first.
+    std::vector<TreeBox> tree_boxes(uint32_t max_depth) const;
 
     // Follows one ray through mirrors and glass the way the shading does (pure refraction:
     // FRESNEL is ignored), up to max_events surfaces; stops at a diffuse surface, a light or the
