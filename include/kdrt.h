@@ -74,8 +74,8 @@
 
    THREAD SAFETY
      No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
-     may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(), the
-     inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
+     may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(),
+     kdrt_intersect_k(), the inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
      until none is running. Builds of different trees may run at once, and one SAH build may run
      its tasks on many threads through options.scheduler, which then calls options.allocator
      from those threads.
@@ -97,7 +97,8 @@
      builder and leaf size returns exactly what max_leaf_size = 0 (test every triangle) returns
      for the same ray, with one exception: a triangle that a ray misses by less than the test's
      rounding error but still "hits" can lie beyond a split plane the ray never crosses, and the
-     tree, rightly, never tests it.
+     tree, rightly, never tests it. kdrt_intersect_k() returns the k nearest in the same order,
+     (t, triangle), each as kdrt_intersect() would report it, with the same exception.
      Triangles are intersected in single precision with no epsilon; a ray meeting a triangle
      exactly on its edge counts as a hit. options.intersector picks the test for a tree:
        KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
@@ -524,6 +525,13 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree);
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit);
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
+/* The k nearest hits in the ray's range, k = capacity at most, into hits[0..k) sorted by t (equal
+   t: the lower triangle first, as kdrt_intersect decides ties); returns how many. Each triangle
+   once, with the t, u, v kdrt_intersect would give it; exact: no hit nearer than the last one
+   returned is left out. For shadow rays through glass, transparency, and counting the surfaces a
+   segment crosses. NULL arguments or capacity 0 give 0. */
+KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hits,
+                                   uint32_t capacity);
 
 /* The work one query did, for measuring. Counting is compiled in only
    where KDRT_TRAVERSAL_STATS is defined before the implementation; kdrt_intersect_counted()
@@ -998,9 +1006,16 @@ KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aab
 #define KDRT__EPS 5.96046448e-8f /* 2^-24, half an ulp of 1 */
 #define KDRT__T_SLACK (2.0f * (3.0f * KDRT__EPS) / (1.0f - 3.0f * KDRT__EPS))
 
+/* kdrt_intersect_k's hits so far, sorted by (t, triangle). */
+typedef struct kdrt__hit_list {
+    kdrt_hit *hits;
+    uint32_t count, capacity;
+} kdrt__hit_list;
+
 typedef struct kdrt__ray_setup {
     float org[3], dir[3], inv_dir[3];
     float tmin, tmax;
+    kdrt__hit_list *list; /* kdrt_intersect_k's, else NULL: the nearest hit only */
     /* Watertight test: kz is the axis of the largest |dir| component, kx and ky the others
        (swapped when dir[kz] < 0 to keep the winding); the shear maps dir onto +z. */
     int kx, ky, kz;
@@ -1021,6 +1036,7 @@ static int kdrt__setup_ray(const kdrt_ray *ray, kdrt__ray_setup *s)
     if (ray->tmin != ray->tmin) return 0; /* NaN */
     s->tmin = ray->tmin > 0.0f ? ray->tmin : 0.0f;
     s->tmax = ray->tmax;
+    s->list = NULL;
     if (!nonzero || !(s->tmin <= s->tmax)) return 0; /* also when tmax is NaN */
 
     s->kz = 0;
@@ -2856,6 +2872,28 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
 
 /* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
    that the answer does not depend on the order of the tests. */
+/* kdrt_intersect_k: a hit before the bound goes into the list, in order, once per triangle (one
+   split across leaves is met again, with the same answer). While the list has room the bound is
+   the ray's tmax; once it is full, the bound is its last hit, so the traversal skips whatever
+   lies beyond, as it does beyond the nearest hit. */
+static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, uint32_t tri, float t, float u,
+                          float v)
+{
+    uint32_t i;
+    for (i = 0; i < list->count; ++i)
+        if (list->hits[i].triangle == tri) return 0;
+    /* Full: the new hit comes before the last (the bound), which drops out. */
+    i = list->count < list->capacity ? list->count : list->capacity - 1u;
+    for (; i > 0 && (list->hits[i - 1].t > t ||
+                     (list->hits[i - 1].t == t && list->hits[i - 1].triangle > tri));
+         --i)
+        list->hits[i] = list->hits[i - 1];
+    list->hits[i].t = t, list->hits[i].u = u, list->hits[i].v = v, list->hits[i].triangle = tri;
+    if (list->count < list->capacity) ++list->count;
+    if (list->count == list->capacity) *bound = list->hits[list->count - 1u];
+    return 1;
+}
+
 static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
                         const kdrt__ray_setup *s)
 {
@@ -2864,6 +2902,7 @@ static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
        fast test's product overflowing) is no hit anyone can use. */
     if (!kdrt__finite(t) || !kdrt__finite(u) || !kdrt__finite(v)) return 0;
     if (t == best->t && tri > best->triangle) return 0;
+    if (s->list) return kdrt__keep_hit(s->list, best, tri, t, u, v);
     best->t = t, best->u = u, best->v = v, best->triangle = tri;
     return 1;
 }
@@ -3117,7 +3156,7 @@ typedef struct kdrt__todo {
 /* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
    counting is compiled in and it is not NULL, gets the work done. */
 static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *best, int any_hit,
-                          kdrt_traversal_stats *stats)
+                          kdrt__hit_list *list, kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node = 0;
@@ -3131,6 +3170,7 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
     memset(tested, 0xFF, sizeof tested);
     if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
     best->t = s.tmax;
+    s.list = list; /* best is then the bound: the list's last hit once it is full */
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
@@ -3216,7 +3256,7 @@ static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit 
         hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
         return 0;
     }
-    return kdrt__traverse(tree, ray, hit, 0, stats);
+    return kdrt__traverse(tree, ray, hit, 0, NULL, stats);
 }
 
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
@@ -3235,7 +3275,18 @@ KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, 
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
 {
     kdrt_hit hit;
-    return tree && ray && kdrt__traverse(tree, ray, &hit, 1, NULL);
+    return tree && ray && kdrt__traverse(tree, ray, &hit, 1, NULL, NULL);
+}
+
+KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hits,
+                                   uint32_t capacity)
+{
+    kdrt__hit_list list;
+    kdrt_hit bound;
+    if (!tree || !ray || !hits || capacity == 0) return 0;
+    list.hits = hits, list.count = 0, list.capacity = capacity;
+    kdrt__traverse(tree, ray, &bound, 0, &list, NULL);
+    return list.count;
 }
 
 /* ==== secondary rays ==== */
