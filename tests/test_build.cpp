@@ -101,15 +101,7 @@ TEST_CASE("build: SSE2 and scalar binning give the same tree", "[build][sah]") {
     for (const common::Mesh &mesh : meshes)
         for (const kt::Builder &builder : kt::kSahBuilders) {
             INFO(mesh.name << ", " << builder.name);
-            kdrt_build_options o = kdrt_default_build_options();
-            builder.apply(o);
-            o.max_leaf_size = 4;
-            const kdrt_triangles view = mesh.view();
-            kdrt_tree *simd = nullptr, *scalar = nullptr;
-            REQUIRE(kdrt_tree_build(&view, &o, &simd, nullptr) == KDRT_SUCCESS);
-            o.flags |= KDRT_BUILD_SCALAR_KERNEL;
-            REQUIRE(kdrt_tree_build(&view, &o, &scalar, nullptr) == KDRT_SUCCESS);
-            kt::TreePtr a(simd), b(scalar);
+            kt::TreePtr a = kt::build(mesh, 4, builder), b = kt::build(mesh, 4, builder, KDRT_BUILD_SCALAR_KERNEL);
             if (&mesh != &meshes[3]) CHECK(kdrt_tree_node_count(a.get()) > 1);
             kt::check_same_shape(a.get(), b.get());
         }

@@ -15,17 +15,6 @@
 
 namespace {
 
-kt::TreePtr build_tree(const common::Mesh &mesh, const kt::Builder &builder, uint32_t leaf, uint32_t flags = 0) {
-    kdrt_build_options o = kdrt_default_build_options();
-    builder.apply(o);
-    o.max_leaf_size = leaf;
-    o.flags = flags;
-    const kdrt_triangles view = mesh.view();
-    kdrt_tree *tree = nullptr;
-    REQUIRE(kdrt_tree_build(&view, &o, &tree, nullptr) == KDRT_SUCCESS);
-    return kt::TreePtr(tree);
-}
-
 bool hit_before(const kdrt_hit &a, const kdrt_hit &b) {
     return a.t < b.t || (a.t == b.t && a.triangle < b.triangle);
 }
@@ -112,7 +101,7 @@ TEST_CASE("k nearest: every hit of small meshes, against a tree per triangle", "
                 for (uint32_t flags : {0u, uint32_t(KDRT_BUILD_SCALAR_KERNEL)}) {
                     INFO(mesh.name << ", " << builder.name << ", leaf size " << leaf
                                    << (flags ? ", scalar kernel" : ""));
-                    kt::TreePtr tree = build_tree(mesh, builder, leaf, flags);
+                    kt::TreePtr tree = kt::build(mesh, leaf, builder, flags);
                     size_t wrong = 0;
                     std::string first;
                     for (size_t r = 0; r < rays.size(); ++r) {
@@ -141,13 +130,13 @@ TEST_CASE("k nearest: large meshes against leaf size 0, and k = 1 is kdrt_inters
                                    oracle::hostile_mesh("overlapping", 3000, 4)};
     for (const common::Mesh &mesh : meshes) {
         const std::vector<kdrt_ray> rays = rays_for(mesh, 1500, 33);
-        const kt::TreePtr brute = build_tree(mesh, kt::kBuilders[0], 0);
+        const kt::TreePtr brute = kt::build(mesh, 0, kt::kBuilders[0]);
         std::vector<std::vector<kdrt_hit>> want(rays.size());
         for (size_t r = 0; r < rays.size(); ++r) want[r] = k_nearest(brute.get(), rays[r], 64);
         for (const kt::Builder &builder : kt::kBuilders)
             for (uint32_t flags : {0u, uint32_t(KDRT_BUILD_SCALAR_KERNEL)}) {
                 INFO(mesh.name << ", " << builder.name << (flags ? ", scalar kernel" : ""));
-                kt::TreePtr tree = build_tree(mesh, builder, 4, flags);
+                kt::TreePtr tree = kt::build(mesh, 4, builder, flags);
                 size_t wrong = 0, k1_wrong = 0;
                 std::string first;
                 for (size_t r = 0; r < rays.size(); ++r) {
@@ -172,7 +161,7 @@ TEST_CASE("k nearest: large meshes against leaf size 0, and k = 1 is kdrt_inters
 TEST_CASE("k nearest: a ray through a closed mesh crosses it an even number of times", "[k-nearest]") {
     // From outside the sphere to beyond it: in and out, and the count says how many surfaces.
     const common::Mesh mesh = kt::sphere(40, 80, 1.0);
-    const kt::TreePtr tree = build_tree(mesh, kt::kBuilders[2], 4);
+    const kt::TreePtr tree = kt::build(mesh, 4, kt::kBuilders[2]);
     kdrt_hit hits[8];
     for (int i = 0; i < 200; ++i) {
         const float y = -0.9f + 1.8f * float(i) / 199.0f;
@@ -190,7 +179,7 @@ TEST_CASE("k nearest: a ray through a closed mesh crosses it an even number of t
 
 TEST_CASE("k nearest: NULL arguments and capacity 0 give 0 and write nothing", "[k-nearest]") {
     const common::Mesh mesh = kt::sphere(8, 16, 1.0);
-    const kt::TreePtr tree = build_tree(mesh, kt::kBuilders[1], 4);
+    const kt::TreePtr tree = kt::build(mesh, 4, kt::kBuilders[1]);
     const kdrt_ray ray = kt::ray_of(-3.0f, 0.1f, 0.1f, 1.0f, 0.0f, 0.0f);
     kdrt_hit hit;
     hit.triangle = 77;

@@ -164,10 +164,11 @@ std::vector<unsigned char> occluded_all(const kdrt_tree *tree, const std::vector
     return occluded;
 }
 
-TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, const Builder &builder) {
+TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, const Builder &builder, uint32_t flags) {
     kdrt_triangles view = mesh.view();
     kdrt_build_options options = kdrt_default_build_options();
     options.max_leaf_size = max_leaf_size;
+    options.flags = flags;
     builder.apply(options);
     kdrt_tree *tree = nullptr;
     kdrt_result r = kdrt_tree_build(&view, &options, &tree, nullptr);

@@ -70,10 +70,11 @@ constexpr Builder kSahBuilders[] = {{KDRT_BUILDER_SAH, KDRT_BUILD_QUALITY_FAST, 
 constexpr Builder kBuilders[] = {{KDRT_BUILDER_MEDIAN, KDRT_BUILD_QUALITY_DEFAULT, "median"}, kSahBuilders[0],
                                  kSahBuilders[1], kSahBuilders[2]};
 
-// A tree of `mesh` built with kdrt_default_build_options() but for the leaf size and builder; the
-// builder defaults to the library's (KDRT_BUILDER_DEFAULT). REQUIREs success.
+// A tree of `mesh` built with kdrt_default_build_options() but for the leaf size, builder and
+// flags (kdrt_build_flags); the builder defaults to the library's (KDRT_BUILDER_DEFAULT).
+// REQUIREs success.
 TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder = KDRT_BUILDER_DEFAULT);
-TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, const Builder &builder);
+TreePtr build(const common::Mesh &mesh, uint32_t max_leaf_size, const Builder &builder, uint32_t flags = 0);
 
 // b is a's tree with every coordinate multiplied by scale (a power of two, or 1): the same
 // statistics, nodes, splits and references, in the same order, and the same SAH cost. FAILs with

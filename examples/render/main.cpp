@@ -1,6 +1,6 @@
 // kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
 // Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
-#include "common/output.hpp"  // common::close_stdout
+#include "common/output.hpp"  // common::guarded_main, UsageError
 #include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "render.hpp"
 #include "scene_file.hpp"
@@ -59,9 +59,7 @@ const char *const kUsage =
     "Exit status: 0 success, 1 failure (unreadable mesh or scene, unwritable output), 2 a bad\n"
     "command line.\n";
 
-struct UsageError {
-    std::string message;
-};
+using common::UsageError;
 
 int fail(const std::string &message, int code)
 {
@@ -264,15 +262,5 @@ int run(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
-    int status = 1;
-    try {
-        status = run(argc, argv);
-    } catch (const UsageError &e) {
-        status = fail(e.message, 2);
-    } catch (const std::bad_alloc &) {
-        status = fail("out of memory", 1);
-    } catch (const std::exception &e) {
-        status = fail(e.what(), 1);
-    }
-    return common::close_stdout("kdrt-render", status);
+    return common::guarded_main("kdrt-render", [&] { return run(argc, argv); });
 }

@@ -1,7 +1,7 @@
 // kdrt-view: kdrt-render's presets and scene files in a window, ray traced on every core and
 // refined frame after frame while the camera stands still; keys for the settings and the kd-tree.
 // Without a person: --frames N --screenshot OUT.png, and --keys to replay keys.
-#include "common/output.hpp"  // common::close_stdout
+#include "common/output.hpp"  // common::guarded_main, UsageError
 #include "common/parse.hpp"   // common::parse_count, common::parse_size
 #include "common/timing.hpp"  // common::Stopwatch
 #include "viewer.hpp"
@@ -64,9 +64,7 @@ const char *const kUsage =
     "Exit status: 0 success, 1 failure (no display, unreadable scene, unwritable screenshot), 2 a\n"
     "bad command line.\n";
 
-struct UsageError {
-    std::string message;
-};
+using common::UsageError;
 
 const double kPi = 3.14159265358979323846;
 
@@ -407,15 +405,5 @@ int run(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
-    int status = 1;
-    try {
-        status = run(argc, argv);
-    } catch (const UsageError &e) {
-        status = fail(e.message, 2);
-    } catch (const std::bad_alloc &) {
-        status = fail("out of memory", 1);
-    } catch (const std::exception &e) {
-        status = fail(e.what(), 1);
-    }
-    return common::close_stdout("kdrt-view", status);
+    return common::guarded_main("kdrt-view", [&] { return run(argc, argv); });
 }
