@@ -1,8 +1,9 @@
 // kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
 // Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
 #include "common/output.hpp"  // common::guarded_main, UsageError
-#include "common/parse.hpp"  // common::parse_count, common::parse_size
+#include "common/parse.hpp"  // common::parse_count
 #include "render.hpp"
+#include "command_line.hpp"
 #include "scene_file.hpp"
 
 #include <unistd.h>
@@ -77,15 +78,6 @@ bool parse_double(const std::string &text, double &out)
     return true;
 }
 
-// WxH, sides 1..16384, at most 64 Mpixels.
-bool parse_size(const std::string &text, uint32_t &width, uint32_t &height)
-{
-    uint32_t w = 0, h = 0;
-    if (!common::parse_size(text, 16384, w, h) || uint64_t(w) * h > (uint64_t(1) << 26)) return false;
-    width = w, height = h;
-    return true;
-}
-
 // anim.png -> anim-0007.png
 std::string frame_path(const std::string &path, uint32_t frame)
 {
@@ -104,9 +96,8 @@ std::string format_value(double v)
 
 int run(int argc, char **argv)
 {
-    std::string preset, scene_file, out, reference, animate;
-    std::vector<std::string> sets;
-    kr::RenderOptions options;
+    kr::SceneArgs args;
+    std::string out, reference, animate;
     uint64_t frames = 0;
     bool exr_float = false, have_frames = false;
 
@@ -116,30 +107,13 @@ int run(int argc, char **argv)
             if (i + 1 >= argc) throw UsageError{arg + " needs a value (see --help)"};
             return argv[++i];
         };
+        if (kr::take_scene_arg(arg, value, args)) continue;
         if (arg == "--help" || arg == "-h") {
             std::fputs(kUsage, stdout);
             return 0;
         } else if (arg == "--list-presets") {
             for (const std::string &p : kr::preset_names()) std::printf("%s\n", p.c_str());
             return 0;
-        } else if (arg == "--preset") {
-            preset = value();
-        } else if (arg == "--scene") {
-            scene_file = value();
-        } else if (arg == "--set") {
-            sets.push_back(value());
-        } else if (arg == "--size") {
-            const std::string v = value();
-            if (!parse_size(v, options.width, options.height))
-                throw UsageError{"bad --size '" + v + "': expected WxH, each side 1..16384, at most 64 Mpixels"};
-        } else if (arg == "--threads") {
-            const std::string v = value();
-            uint64_t n = 0;
-            if (!common::parse_count(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
-            options.threads = unsigned(n);
-        } else if (arg == "--seed") {
-            const std::string v = value();
-            if (!common::parse_count(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
         } else if (arg == "--animate") {
             animate = value();
         } else if (arg == "--frames") {
@@ -159,18 +133,22 @@ int run(int argc, char **argv)
     if (out.empty()) throw UsageError{"no output file: give -o OUT.png or -o OUT.exr"};
     std::string error;
     if (!kr::check_image_extension(out, error)) throw UsageError{error};
-    if (!preset.empty() && !scene_file.empty()) throw UsageError{"give --preset or --scene, not both"};
+    if (!args.preset.empty() && !args.scene_file.empty()) throw UsageError{"give --preset or --scene, not both"};
     if (animate.empty() != !have_frames) throw UsageError{"--animate and --frames go together"};
     if (!animate.empty() && !reference.empty()) throw UsageError{"--reference compares one image: not with --animate"};
 
+    kr::RenderOptions options;
+    options.width = args.width, options.height = args.height;
+    options.threads = args.threads, options.seed = args.seed;
+
     // The scene, then the settings on top.
     kr::Scene scene;
-    if (!scene_file.empty()) {
-        if (!kr::load_scene_file(scene_file, scene, error)) return fail(error, 1);
-    } else if (!kr::make_preset(preset.empty() ? "PICTURE" : preset, scene, error)) {
+    if (!args.scene_file.empty()) {
+        if (!kr::load_scene_file(args.scene_file, scene, error)) return fail(error, 1);
+    } else if (!kr::make_preset(args.preset.empty() ? "PICTURE" : args.preset, scene, error)) {
         throw UsageError{error};
     }
-    for (const std::string &s : sets) {
+    for (const std::string &s : args.sets) {
         const size_t eq = s.find('=');
         if (eq == std::string::npos || eq == 0) throw UsageError{"bad --set '" + s + "': expected KEY=VALUE"};
         if (!kr::apply_setting(scene, s.substr(0, eq), s.substr(eq + 1), error)) throw UsageError{"--set: " + error};

@@ -2,8 +2,9 @@
 // refined frame after frame while the camera stands still; keys for the settings and the kd-tree.
 // Without a person: --frames N --screenshot OUT.png, and --keys to replay keys.
 #include "common/output.hpp"  // common::guarded_main, UsageError
-#include "common/parse.hpp"   // common::parse_count, common::parse_size
+#include "common/parse.hpp"   // common::parse_count
 #include "common/timing.hpp"  // common::Stopwatch
+#include "command_line.hpp"
 #include "viewer.hpp"
 
 #include <SDL.h>
@@ -212,8 +213,8 @@ double median(std::vector<double> v)
 
 int run(int argc, char **argv)
 {
-    view::Options options;
-    uint32_t width = 640, height = 480;
+    kr::SceneArgs args;
+    args.width = 640, args.height = 480;
     uint64_t frames = 0;
     double orbit_degrees = 0;
     std::string screenshot, keys_text;
@@ -225,27 +226,10 @@ int run(int argc, char **argv)
             if (i + 1 >= argc) throw UsageError{arg + " needs a value (see --help)"};
             return argv[++i];
         };
+        if (kr::take_scene_arg(arg, value, args)) continue;
         if (arg == "--help" || arg == "-h") {
             std::fputs(kUsage, stdout);
             return 0;
-        } else if (arg == "--preset") {
-            options.preset = value();
-        } else if (arg == "--scene") {
-            options.scene_file = value();
-        } else if (arg == "--set") {
-            options.sets.push_back(value());
-        } else if (arg == "--size") {
-            const std::string v = value();
-            if (!common::parse_size(v, 16384, width, height) || uint64_t(width) * height > (uint64_t(1) << 26))
-                throw UsageError{"bad --size '" + v + "': expected WxH, each side 1..16384, at most 64 Mpixels"};
-        } else if (arg == "--threads") {
-            const std::string v = value();
-            uint64_t n = 0;
-            if (!common::parse_count(v, 1024, n) || n == 0) throw UsageError{"bad --threads '" + v + "': expected 1..1024"};
-            options.threads = unsigned(n);
-        } else if (arg == "--seed") {
-            const std::string v = value();
-            if (!common::parse_count(v, UINT64_MAX, options.seed)) throw UsageError{"bad --seed '" + v + "': expected an unsigned integer"};
         } else if (arg == "--frames") {
             const std::string v = value();
             if (!common::parse_count(v, 1000000, frames) || frames == 0) throw UsageError{"bad --frames '" + v + "': expected 1..1000000"};
@@ -268,7 +252,11 @@ int run(int argc, char **argv)
             throw UsageError{"unknown argument '" + arg + "' (see --help)"};
         }
     }
-    if (!options.preset.empty() && !options.scene_file.empty()) throw UsageError{"give --preset or --scene, not both"};
+    if (!args.preset.empty() && !args.scene_file.empty()) throw UsageError{"give --preset or --scene, not both"};
+    view::Options options;
+    options.preset = args.preset, options.scene_file = args.scene_file, options.sets = args.sets;
+    options.threads = args.threads, options.seed = args.seed;
+    const uint32_t width = args.width, height = args.height;
     if (have_keys && frames == 0) throw UsageError{"--keys replays keys for --frames: give --frames N"};
     if (!screenshot.empty()) {
         const size_t dot = screenshot.find_last_of('.'), slash = screenshot.find_last_of('/');
