@@ -75,7 +75,7 @@
    THREAD SAFETY
      No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
      may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(),
-     kdrt_intersect_k(), the inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
+     kdrt_intersect_k(), the _query variants, the inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
      until none is running. Builds of different trees may run at once, and one SAH build may run
      its tasks on many threads through options.scheduler, which then calls options.allocator
      from those threads.
@@ -99,6 +99,11 @@
      rounding error but still "hits" can lie beyond a split plane the ray never crosses, and the
      tree, rightly, never tests it. kdrt_intersect_k() returns the k nearest in the same order,
      (t, triangle), each as kdrt_intersect() would report it, with the same exception.
+     A kdrt_query narrows which hits count, for the nearest, any and k nearest hits alike: the
+     front or back faces culled (the side is the sign of the test's own determinant, so it is
+     the side the hit is on, even for a ray all but in the plane), and a filter callback asked
+     about each candidate before it is taken. The answers are those of the same query testing
+     every triangle, the hits that do not count left out.
      Triangles are intersected in single precision with no epsilon; a ray meeting a triangle
      exactly on its edge counts as a hit. options.intersector picks the test for a tree:
        KDRT_INTERSECTOR_WATERTIGHT (the default; Woop, Benthin & Wald 2013): a ray that crosses a
@@ -525,13 +530,45 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree);
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit);
 /* 1 when any triangle is hit in the ray's range (shadow rays). */
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray);
-/* The k nearest hits in the ray's range, k = capacity at most, into hits[0..k) sorted by t (equal
-   t: the lower triangle first, as kdrt_intersect decides ties); returns how many. Each triangle
-   once, with the t, u, v kdrt_intersect would give it; exact: no hit nearer than the last one
-   returned is left out. For shadow rays through glass, transparency, and counting the surfaces a
-   segment crosses. NULL arguments or capacity 0 give 0. */
-KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hits,
-                                   uint32_t capacity);
+
+/* A query's rules for which hits count: faces culled, and a filter the caller decides with (alpha
+   testing, skipping the surface a ray leaves, one-sided glass). Start from kdrt_default_query(),
+   which counts every hit. */
+typedef enum kdrt_query_flags {
+    /* A triangle's front is the side its normal (p1 - p0) x (p2 - p0) points to (the side from
+       which its corners run counterclockwise): a ray with dir . normal < 0 hits the front. */
+    KDRT_QUERY_CULL_BACK_FACES = 1u << 0,  /* hits on back faces do not count */
+    KDRT_QUERY_CULL_FRONT_FACES = 1u << 1  /* hits on front faces do not count */
+} kdrt_query_flags;
+
+/* Asked of each candidate hit (ray as the caller gave it, candidate's t, u, v, triangle) before
+   it is taken: nonzero to take it, 0 to go on as if the triangle were not there. It may be called
+   for a triangle more than once and in any order, and only for candidates nearer than the hits
+   taken so far: it must answer the same for the same candidate, and it runs on the querying
+   thread. */
+typedef int (*kdrt_filter_fn)(void *user, const kdrt_ray *ray, const kdrt_hit *candidate);
+
+typedef struct kdrt_query {
+    uint32_t flags;        /* kdrt_query_flags; other bits are reserved, 0 */
+    kdrt_filter_fn filter; /* NULL: every hit that is not culled counts */
+    void *user;            /* passed to filter */
+} kdrt_query;
+
+KDRT_API kdrt_query kdrt_default_query(void);
+/* kdrt_intersect() and kdrt_occluded() counting only the hits query lets through (NULL: all);
+   equal t still goes to the lower triangle, among the hits that count. */
+KDRT_API int kdrt_intersect_query(const kdrt_tree *tree, const kdrt_ray *ray,
+                                  const kdrt_query *query, kdrt_hit *hit);
+KDRT_API int kdrt_occluded_query(const kdrt_tree *tree, const kdrt_ray *ray,
+                                 const kdrt_query *query);
+/* The k nearest hits in the ray's range that query lets through (NULL: all), k = capacity at
+   most, into hits[0..k) sorted by t (equal t: the lower triangle first, as kdrt_intersect decides
+   ties); returns how many. Each triangle once, with the t, u, v kdrt_intersect would give it;
+   exact: no hit nearer than the last one returned is left out. For shadow rays through glass,
+   transparency, and counting the surfaces a segment crosses. NULL tree, ray or hits, or capacity
+   0, give 0. */
+KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
+                                   const kdrt_query *query, kdrt_hit *hits, uint32_t capacity);
 
 /* The work one query did, for measuring. Counting is compiled in only
    where KDRT_TRAVERSAL_STATS is defined before the implementation; kdrt_intersect_counted()
@@ -1016,6 +1053,8 @@ typedef struct kdrt__ray_setup {
     float org[3], dir[3], inv_dir[3];
     float tmin, tmax;
     kdrt__hit_list *list; /* kdrt_intersect_k's, else NULL: the nearest hit only */
+    const kdrt_query *query; /* culling or a filter, else NULL: every hit counts */
+    const kdrt_ray *ray;     /* the caller's, for the filter */
     /* Watertight test: kz is the axis of the largest |dir| component, kx and ky the others
        (swapped when dir[kz] < 0 to keep the winding); the shear maps dir onto +z. */
     int kx, ky, kz;
@@ -1036,7 +1075,7 @@ static int kdrt__setup_ray(const kdrt_ray *ray, kdrt__ray_setup *s)
     if (ray->tmin != ray->tmin) return 0; /* NaN */
     s->tmin = ray->tmin > 0.0f ? ray->tmin : 0.0f;
     s->tmax = ray->tmax;
-    s->list = NULL;
+    s->list = NULL, s->query = NULL, s->ray = ray;
     if (!nonzero || !(s->tmin <= s->tmax)) return 0; /* also when tmax is NaN */
 
     s->kz = 0;
@@ -2902,7 +2941,23 @@ KDRT__NOINLINE static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, 
     return 1;
 }
 
-static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
+/* Whether the query counts the candidate: its face not culled, and its filter says yes. Out of
+   line, as kdrt__keep_hit. */
+KDRT__NOINLINE static int kdrt__query_counts(const kdrt__ray_setup *s, uint32_t tri, float t,
+                                             float u, float v, int front)
+{
+    const kdrt_query *q = s->query;
+    kdrt_hit candidate;
+    if (q->flags & (front ? KDRT_QUERY_CULL_FRONT_FACES : KDRT_QUERY_CULL_BACK_FACES)) return 0;
+    if (!q->filter) return 1;
+    candidate.t = t, candidate.u = u, candidate.v = v, candidate.triangle = tri;
+    return q->filter(q->user, s->ray, &candidate) != 0;
+}
+
+/* A candidate hit on triangle tri, front: whether the ray hits its front face (kdrt_query_flags;
+   from the sign of the test's determinant). Taken when it is nearer than best (or as near, on a
+   lower triangle) and counts. */
+static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v, int front,
                         const kdrt__ray_setup *s)
 {
     if (!(t >= s->tmin && t <= best->t)) return 0;
@@ -2910,6 +2965,7 @@ static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
        fast test's product overflowing) is no hit anyone can use. */
     if (!kdrt__finite(t) || !kdrt__finite(u) || !kdrt__finite(v)) return 0;
     if (t == best->t && tri > best->triangle) return 0;
+    if (s->query && !kdrt__query_counts(s, tri, t, u, v, front)) return 0;
     if (s->list) return kdrt__keep_hit(s->list, best, tri, t, u, v);
     best->t = t, best->u = u, best->v = v, best->triangle = tri;
     return 1;
@@ -2956,7 +3012,7 @@ static int kdrt__intersect_watertight(const kdrt__block *block, uint32_t lane,
     if (det == 0.0) return 0; /* the ray lies in the triangle's plane, sheared exactly */
     inv_det = 1.0 / det;
     return kdrt__accept(best, block->id[lane], (float)((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det),
-                        (float)(e1 * inv_det), (float)(e2 * inv_det), s);
+                        (float)(e1 * inv_det), (float)(e2 * inv_det), det > 0.0, s);
 }
 
 /* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an
@@ -2980,7 +3036,8 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
     v = (s->dir[0] * qv[0] + s->dir[1] * qv[1] + s->dir[2] * qv[2]) * inv_det;
     if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
-    return kdrt__accept(best, block->id[lane], t, u, v, s);
+    /* det = e1 . (dir x e2) = -dir . (e1 x e2): positive on the front face */
+    return kdrt__accept(best, block->id[lane], t, u, v, det > 0.0f, s);
 }
 
 /* ==== the AVX2 kernel: 8 triangles at a time ==== */
@@ -3003,15 +3060,17 @@ static int kdrt__cpu_has_avx2(void)
 }
 
 /* The lanes of mask (one bit a lane) offered to kdrt__accept in turn: the order does not matter,
-   as kdrt__accept keeps the lowest (t, triangle) whatever the order it is offered them. */
+   as kdrt__accept keeps the lowest (t, triangle) whatever the order it is offered them. front:
+   a bit a lane, set where the ray hits the front face. */
 static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
-                              const float *t, const float *u, const float *v,
+                              unsigned front, const float *t, const float *u, const float *v,
                               const kdrt__ray_setup *s)
 {
     int found = 0;
     for (; mask; mask &= mask - 1u) {
         const unsigned lane = (unsigned)__builtin_ctz(mask);
-        found |= kdrt__accept(best, block->id[lane], t[lane], u[lane], v[lane], s);
+        found |= kdrt__accept(best, block->id[lane], t[lane], u[lane], v[lane],
+                              (int)((front >> lane) & 1u), s);
     }
     return found;
 }
@@ -3055,7 +3114,7 @@ KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *bloc
     const __m256d zero = _mm256_setzero_pd();
     __m256d x[3][2], y[3][2], z[3][2];
     float t[KDRT__LANES], u[KDRT__LANES], v[KDRT__LANES];
-    unsigned mask = 0;
+    unsigned mask = 0, front = 0;
     int k, h;
     __m256 fx[3], fy[3], fz[3];
     for (k = 0; k < 3; ++k) {
@@ -3089,6 +3148,7 @@ KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *bloc
         if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
         for (h = 0; h < 2; ++h) {
             const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det[h]);
+            front |= (unsigned)_mm256_movemask_pd(_mm256_cmp_pd(det[h], zero, _CMP_GT_OQ)) << (4 * h);
             const __m256d num = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(e0[h], z[0][h]),
                                                             _mm256_mul_pd(e1[h], z[1][h])),
                                               _mm256_mul_pd(e2[h], z[2][h]));
@@ -3097,7 +3157,7 @@ KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *bloc
             _mm_storeu_ps(v + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e2[h], inv_det)));
         }
     }
-    return kdrt__accept_lanes(best, block, mask, t, u, v, s);
+    return kdrt__accept_lanes(best, block, mask, front, t, u, v, s);
 }
 
 /* kdrt__intersect_fast on a block's 8 lanes. */
@@ -3139,7 +3199,9 @@ KDRT__TARGET_AVX2 static int kdrt__block_fast_avx2(const kdrt__block *block,
     mask = (unsigned)_mm256_movemask_ps(keep);
     if (!mask) return 0;
     _mm256_storeu_ps(tt, t), _mm256_storeu_ps(uu, u), _mm256_storeu_ps(vv, v);
-    return kdrt__accept_lanes(best, block, mask, tt, uu, vv, s);
+    return kdrt__accept_lanes(best, block, mask,
+                              (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(det, zero, _CMP_GT_OQ)),
+                              tt, uu, vv, s);
 }
 #else
 static int kdrt__cpu_has_avx2(void) { return 0; }
@@ -3163,8 +3225,9 @@ typedef struct kdrt__todo {
 
 /* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
    counting is compiled in and it is not NULL, gets the work done. */
-static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *best, int any_hit,
-                          kdrt__hit_list *list, kdrt_traversal_stats *stats)
+static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt_query *query,
+                          kdrt_hit *best, int any_hit, kdrt__hit_list *list,
+                          kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node = 0;
@@ -3179,6 +3242,7 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *
     if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
     best->t = s.tmax;
     s.list = list; /* best is then the bound: the list's last hit once it is full */
+    if (query && (query->flags || query->filter)) s.query = query;
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
@@ -3264,7 +3328,7 @@ static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit 
         hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
         return 0;
     }
-    return kdrt__traverse(tree, ray, hit, 0, NULL, stats);
+    return kdrt__traverse(tree, ray, NULL, hit, 0, NULL, stats);
 }
 
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
@@ -3283,17 +3347,42 @@ KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, 
 KDRT_API int kdrt_occluded(const kdrt_tree *tree, const kdrt_ray *ray)
 {
     kdrt_hit hit;
-    return tree && ray && kdrt__traverse(tree, ray, &hit, 1, NULL, NULL);
+    return tree && ray && kdrt__traverse(tree, ray, NULL, &hit, 1, NULL, NULL);
 }
 
-KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hits,
-                                   uint32_t capacity)
+KDRT_API kdrt_query kdrt_default_query(void)
+{
+    kdrt_query q;
+    memset(&q, 0, sizeof q);
+    return q;
+}
+
+KDRT_API int kdrt_intersect_query(const kdrt_tree *tree, const kdrt_ray *ray,
+                                  const kdrt_query *query, kdrt_hit *hit)
+{
+    if (!hit) return 0;
+    if (!tree || !ray) {
+        hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
+        return 0;
+    }
+    return kdrt__traverse(tree, ray, query, hit, 0, NULL, NULL);
+}
+
+KDRT_API int kdrt_occluded_query(const kdrt_tree *tree, const kdrt_ray *ray,
+                                 const kdrt_query *query)
+{
+    kdrt_hit hit;
+    return tree && ray && kdrt__traverse(tree, ray, query, &hit, 1, NULL, NULL);
+}
+
+KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
+                                   const kdrt_query *query, kdrt_hit *hits, uint32_t capacity)
 {
     kdrt__hit_list list;
     kdrt_hit bound;
     if (!tree || !ray || !hits || capacity == 0) return 0;
     list.hits = hits, list.count = 0, list.capacity = capacity;
-    kdrt__traverse(tree, ray, &bound, 0, &list, NULL);
+    kdrt__traverse(tree, ray, query, &bound, 0, &list, NULL);
     return list.count;
 }
 

@@ -1,5 +1,5 @@
 /* The header with its implementation as strict C99 (-std=c99 -Wall -Wextra -pedantic -Werror):
-   a tiny tree, one hit, one miss, walking the tree, kdrt_result_string, one refraction and the medium stack. */
+   a tiny tree, one hit, one miss, a query with culling and a filter, the k nearest hits, walking the tree, kdrt_result_string, one refraction and the medium stack. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -15,6 +15,13 @@ static void check(int ok, const char *what)
         fprintf(stderr, "smoke_c99: FAILED: %s\n", what);
         ++failures;
     }
+}
+
+/* A filter taking only triangle 0. */
+static int only_triangle_0(void *user, const kdrt_ray *ray, const kdrt_hit *candidate)
+{
+    (void)user, (void)ray;
+    return candidate->triangle == 0;
 }
 
 int main(void)
@@ -55,6 +62,18 @@ int main(void)
     check(kdrt_intersect(tree, &beside, &hit) == 0, "miss");
     check(hit.triangle == KDRT_INVALID_ID, "miss: triangle is KDRT_INVALID_ID");
     check(kdrt_occluded(tree, &beside) == 0, "miss: not occluded");
+    {
+        /* The square faces +z (counterclockwise seen from above): down hits its front. */
+        kdrt_query query = kdrt_default_query();
+        kdrt_hit hits[2];
+        query.flags = KDRT_QUERY_CULL_FRONT_FACES;
+        check(kdrt_intersect_query(tree, &down, &query, &hit) == 0, "query: the front face culled");
+        query.flags = KDRT_QUERY_CULL_BACK_FACES;
+        check(kdrt_occluded_query(tree, &down, &query) == 1, "query: back faces culled, a front hit");
+        query.filter = only_triangle_0;
+        check(kdrt_intersect_query(tree, &down, &query, &hit) == 0, "query: the filter refuses triangle 1");
+        check(kdrt_intersect_k(tree, &down, NULL, hits, 2) == 1 && hits[0].triangle == 1, "k nearest: one hit");
+    }
 
     /* Inspection: walking every node finds the references kdrt_tree_get_stats() counts, each
        naming one of the two triangles. */
