@@ -2909,22 +2909,12 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
 
 /* ==== intersection tests ==== */
 
-/* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
-   that the answer does not depend on the order of the tests. */
 /* kdrt_intersect_k: a hit before the bound goes into the list, in order, once per triangle (one
    split across leaves is met again, with the same answer). While the list has room the bound is
    the ray's tmax; once it is full, the bound is its last hit, so the traversal skips whatever
-   lies beyond, as it does beyond the nearest hit. Not inlined: inlined into the kernels' accept,
-   its code slowed kdrt_intersect's primary rays by a quarter. */
-#if defined(__GNUC__) || defined(__clang__)
-#define KDRT__NOINLINE __attribute__((noinline))
-#elif defined(_MSC_VER)
-#define KDRT__NOINLINE __declspec(noinline)
-#else
-#define KDRT__NOINLINE
-#endif
-KDRT__NOINLINE static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, uint32_t tri,
-                                         float t, float u, float v)
+   lies beyond, as it does beyond the nearest hit. */
+static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, uint32_t tri, float t, float u,
+                          float v)
 {
     uint32_t i;
     for (i = 0; i < list->count; ++i)
@@ -2941,10 +2931,9 @@ KDRT__NOINLINE static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, 
     return 1;
 }
 
-/* Whether the query counts the candidate: its face not culled, and its filter says yes. Out of
-   line, as kdrt__keep_hit. */
-KDRT__NOINLINE static int kdrt__query_counts(const kdrt__ray_setup *s, uint32_t tri, float t,
-                                             float u, float v, int front)
+/* Whether the query counts the candidate: its face not culled, and its filter says yes. */
+static int kdrt__query_counts(const kdrt__ray_setup *s, uint32_t tri, float t, float u, float v,
+                              int front)
 {
     const kdrt_query *q = s->query;
     kdrt_hit candidate;
@@ -2954,17 +2943,43 @@ KDRT__NOINLINE static int kdrt__query_counts(const kdrt__ray_setup *s, uint32_t 
     return q->filter(q->user, s->ray, &candidate) != 0;
 }
 
-/* A candidate hit on triangle tri, front: whether the ray hits its front face (kdrt_query_flags;
-   from the sign of the test's determinant). Taken when it is nearer than best (or as near, on a
-   lower triangle) and counts. */
-static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v, int front,
+/* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
+   that the answer does not depend on the order of the tests: whether a candidate hit on triangle
+   tri is nearer than best (or as near, on a lower triangle) and usable. */
+static int kdrt__nearer(const kdrt_hit *best, uint32_t tri, float t, float u, float v,
                         const kdrt__ray_setup *s)
 {
     if (!(t >= s->tmin && t <= best->t)) return 0;
     /* A distance or barycentric past float's range (a ray all but in the triangle's plane, or a
        fast test's product overflowing) is no hit anyone can use. */
     if (!kdrt__finite(t) || !kdrt__finite(u) || !kdrt__finite(v)) return 0;
-    if (t == best->t && tri > best->triangle) return 0;
+    return !(t == best->t && tri > best->triangle);
+}
+
+/* A candidate hit, taken when nearer: the plain queries' (no kdrt_query rules, no list). */
+static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
+                        const kdrt__ray_setup *s)
+{
+    if (!kdrt__nearer(best, tri, t, u, v, s)) return 0;
+    best->t = t, best->u = u, best->v = v, best->triangle = tri;
+    return 1;
+}
+
+/* A candidate hit under a query's rules or into kdrt_intersect_k's list: taken when nearer and
+   counted. front: whether the ray hits the triangle's front face (kdrt_query_flags), from the
+   sign of the test's own determinant. Out of line: the plain queries never call it, and inlined
+   into the walk it slowed their primary rays by a quarter. */
+#if defined(__GNUC__) || defined(__clang__)
+#define KDRT__NOINLINE __attribute__((noinline))
+#elif defined(_MSC_VER)
+#define KDRT__NOINLINE __declspec(noinline)
+#else
+#define KDRT__NOINLINE
+#endif
+KDRT__NOINLINE static int kdrt__accept_ruled(kdrt_hit *best, uint32_t tri, float t, float u,
+                                             float v, int front, const kdrt__ray_setup *s)
+{
+    if (!kdrt__nearer(best, tri, t, u, v, s)) return 0;
     if (s->query && !kdrt__query_counts(s, tri, t, u, v, front)) return 0;
     if (s->list) return kdrt__keep_hit(s->list, best, tri, t, u, v);
     best->t = t, best->u = u, best->v = v, best->triangle = tri;
@@ -2985,9 +3000,9 @@ static void kdrt__lane_corners(const kdrt__block *block, uint32_t lane, float p[
    and a ray through the edge or a shared vertex hits at least one of them. The AVX2 kernel's
    kdrt__block_watertight_avx2 is the same arithmetic, operation for operation. */
 static int kdrt__intersect_watertight(const kdrt__block *block, uint32_t lane,
-                                      const kdrt__ray_setup *s, kdrt_hit *best)
+                                      const kdrt__ray_setup *s, kdrt_hit *best, int ruled)
 {
-    float p[3][3], x[3], y[3], z[3];
+    float p[3][3], x[3], y[3], z[3], t, u, v;
     double e0, e1, e2, det, inv_det;
     const int kx = s->kx, ky = s->ky, kz = s->kz;
     int k;
@@ -3011,15 +3026,17 @@ static int kdrt__intersect_watertight(const kdrt__block *block, uint32_t lane,
     det = e0 + e1 + e2;
     if (det == 0.0) return 0; /* the ray lies in the triangle's plane, sheared exactly */
     inv_det = 1.0 / det;
-    return kdrt__accept(best, block->id[lane], (float)((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det),
-                        (float)(e1 * inv_det), (float)(e2 * inv_det), det > 0.0, s);
+    t = (float)((e0 * z[0] + e1 * z[1] + e2 * z[2]) * inv_det);
+    u = (float)(e1 * inv_det), v = (float)(e2 * inv_det);
+    return ruled ? kdrt__accept_ruled(best, block->id[lane], t, u, v, det > 0.0, s)
+                 : kdrt__accept(best, block->id[lane], t, u, v, s);
 }
 
 /* Moeller-Trumbore, no epsilon: fewer operations, but the edge tests of two triangles sharing an
    edge are computed differently, so a ray through the edge can miss both. The AVX2 kernel's
    kdrt__block_fast_avx2 is the same arithmetic, operation for operation. */
 static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const kdrt__ray_setup *s,
-                                kdrt_hit *best)
+                                kdrt_hit *best, int ruled)
 {
     float p[3][3], e1[3], e2[3], pv[3], tv[3], qv[3], det, inv_det, u, v, t;
     int a;
@@ -3037,7 +3054,8 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
     if (!(v >= 0.0f && u + v <= 1.0f)) return 0;
     t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv_det;
     /* det = e1 . (dir x e2) = -dir . (e1 x e2): positive on the front face */
-    return kdrt__accept(best, block->id[lane], t, u, v, det > 0.0f, s);
+    return ruled ? kdrt__accept_ruled(best, block->id[lane], t, u, v, det > 0.0f, s)
+                 : kdrt__accept(best, block->id[lane], t, u, v, s);
 }
 
 /* ==== the AVX2 kernel: 8 triangles at a time ==== */
@@ -3059,18 +3077,28 @@ static int kdrt__cpu_has_avx2(void)
     return __builtin_cpu_supports("avx2") != 0;
 }
 
-/* The lanes of mask (one bit a lane) offered to kdrt__accept in turn: the order does not matter,
-   as kdrt__accept keeps the lowest (t, triangle) whatever the order it is offered them. front:
-   a bit a lane, set where the ray hits the front face. */
+/* What a block test found: the lanes whose triangles the ray meets (its return value, a bit a
+   lane), their t, u, v, and front, a bit a lane set where the ray meets the front face. The block
+   tests only find; the traversal decides (kdrt__accept_lanes), so that the tests, which most
+   blocks leave early, make no calls and save no registers. */
+typedef struct kdrt__candidates {
+    float t[KDRT__LANES], u[KDRT__LANES], v[KDRT__LANES];
+    unsigned front;
+} kdrt__candidates;
+
+/* The lanes of mask offered to kdrt__accept in turn: the order does not matter, as kdrt__accept
+   keeps the lowest (t, triangle) whatever the order it is offered them. ruled: s has a query's
+   rules or a list (kdrt__accept_ruled). */
 static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
-                              unsigned front, const float *t, const float *u, const float *v,
-                              const kdrt__ray_setup *s)
+                              const kdrt__candidates *c, const kdrt__ray_setup *s, int ruled)
 {
     int found = 0;
     for (; mask; mask &= mask - 1u) {
-        const unsigned lane = (unsigned)__builtin_ctz(mask);
-        found |= kdrt__accept(best, block->id[lane], t[lane], u[lane], v[lane],
-                              (int)((front >> lane) & 1u), s);
+        const unsigned lane = (unsigned)__builtin_ctz(mask), id = block->id[lane];
+        found |= ruled
+                     ? kdrt__accept_ruled(best, id, c->t[lane], c->u[lane], c->v[lane],
+                                          (int)((c->front >> lane) & 1u), s)
+                     : kdrt__accept(best, id, c->t[lane], c->u[lane], c->v[lane], s);
     }
     return found;
 }
@@ -3103,8 +3131,9 @@ KDRT__TARGET_AVX2 static inline int kdrt__block_surely_missed_avx2(const __m256 
 }
 
 /* kdrt__intersect_watertight on a block's 8 lanes. */
-KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *block,
-                                                         const kdrt__ray_setup *s, kdrt_hit *best)
+KDRT__TARGET_AVX2 static unsigned kdrt__block_watertight_avx2(const kdrt__block *block,
+                                                              const kdrt__ray_setup *s,
+                                                              kdrt__candidates *c)
 {
     const int kx = s->kx, ky = s->ky, kz = s->kz;
     const __m256 ox = _mm256_set1_ps(s->org[kx]), oy = _mm256_set1_ps(s->org[ky]);
@@ -3113,8 +3142,7 @@ KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *bloc
     const __m256 sz = _mm256_set1_ps(s->shear_z);
     const __m256d zero = _mm256_setzero_pd();
     __m256d x[3][2], y[3][2], z[3][2];
-    float t[KDRT__LANES], u[KDRT__LANES], v[KDRT__LANES];
-    unsigned mask = 0, front = 0;
+    unsigned mask = 0;
     int k, h;
     __m256 fx[3], fy[3], fz[3];
     for (k = 0; k < 3; ++k) {
@@ -3146,27 +3174,29 @@ KDRT__TARGET_AVX2 static int kdrt__block_watertight_avx2(const kdrt__block *bloc
             mask |= (unsigned)_mm256_movemask_pd(keep) << (4 * h);
         }
         if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
+        c->front = 0;
         for (h = 0; h < 2; ++h) {
             const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det[h]);
-            front |= (unsigned)_mm256_movemask_pd(_mm256_cmp_pd(det[h], zero, _CMP_GT_OQ)) << (4 * h);
+            c->front |= (unsigned)_mm256_movemask_pd(_mm256_cmp_pd(det[h], zero, _CMP_GT_OQ))
+                        << (4 * h);
             const __m256d num = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(e0[h], z[0][h]),
                                                             _mm256_mul_pd(e1[h], z[1][h])),
                                               _mm256_mul_pd(e2[h], z[2][h]));
-            _mm_storeu_ps(t + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(num, inv_det)));
-            _mm_storeu_ps(u + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e1[h], inv_det)));
-            _mm_storeu_ps(v + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e2[h], inv_det)));
+            _mm_storeu_ps(c->t + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(num, inv_det)));
+            _mm_storeu_ps(c->u + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e1[h], inv_det)));
+            _mm_storeu_ps(c->v + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e2[h], inv_det)));
         }
     }
-    return kdrt__accept_lanes(best, block, mask, front, t, u, v, s);
+    return mask;
 }
 
 /* kdrt__intersect_fast on a block's 8 lanes. */
-KDRT__TARGET_AVX2 static int kdrt__block_fast_avx2(const kdrt__block *block,
-                                                   const kdrt__ray_setup *s, kdrt_hit *best)
+KDRT__TARGET_AVX2 static unsigned kdrt__block_fast_avx2(const kdrt__block *block,
+                                                        const kdrt__ray_setup *s,
+                                                        kdrt__candidates *c)
 {
     __m256 p0[3], e1[3], e2[3], tv[3], d[3], pv[3], qv[3], det, inv_det, u, v, t, keep;
     const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-    float tt[KDRT__LANES], uu[KDRT__LANES], vv[KDRT__LANES];
     unsigned mask;
     int a;
     for (a = 0; a < 3; ++a) {
@@ -3198,10 +3228,9 @@ KDRT__TARGET_AVX2 static int kdrt__block_fast_avx2(const kdrt__block *block,
                                              _mm256_cmp_ps(_mm256_add_ps(u, v), one, _CMP_LE_OQ)));
     mask = (unsigned)_mm256_movemask_ps(keep);
     if (!mask) return 0;
-    _mm256_storeu_ps(tt, t), _mm256_storeu_ps(uu, u), _mm256_storeu_ps(vv, v);
-    return kdrt__accept_lanes(best, block, mask,
-                              (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(det, zero, _CMP_GT_OQ)),
-                              tt, uu, vv, s);
+    _mm256_storeu_ps(c->t, t), _mm256_storeu_ps(c->u, u), _mm256_storeu_ps(c->v, v);
+    c->front = (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(det, zero, _CMP_GT_OQ));
+    return mask;
 }
 #else
 static int kdrt__cpu_has_avx2(void) { return 0; }
@@ -3225,9 +3254,18 @@ typedef struct kdrt__todo {
 
 /* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
    counting is compiled in and it is not NULL, gets the work done. */
-static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt_query *query,
-                          kdrt_hit *best, int any_hit, kdrt__hit_list *list,
-                          kdrt_traversal_stats *stats)
+/* Inlined into each query, so that a plain one (no query, no list: ruled a constant 0) is the
+   walk without rules, as fast as before they existed. */
+#if defined(__GNUC__) || defined(__clang__)
+#define KDRT__FORCEINLINE __attribute__((always_inline)) inline
+#elif defined(_MSC_VER)
+#define KDRT__FORCEINLINE __forceinline
+#else
+#define KDRT__FORCEINLINE
+#endif
+static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray,
+                                            const kdrt_query *query, kdrt_hit *best, int any_hit,
+                                            kdrt__hit_list *list, kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node = 0;
@@ -3236,6 +3274,8 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt
     uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
     float t0, t1;
+    /* From the arguments, not from s, so that it is a constant where they are. */
+    const int ruled = list != NULL || (query && (query->flags || query->filter));
 
     best->t = 0.0f, best->u = best->v = 0.0f, best->triangle = KDRT_INVALID_ID;
     memset(tested, 0xFF, sizeof tested);
@@ -3288,8 +3328,12 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt
             if (tree->simd) {
                 for (i = 0; i < count; i += KDRT__LANES) {
                     const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
-                    int found = tree->watertight ? kdrt__block_watertight_avx2(block, &s, best)
-                                                 : kdrt__block_fast_avx2(block, &s, best);
+                    kdrt__candidates candidates;
+                    const unsigned mask = tree->watertight
+                                              ? kdrt__block_watertight_avx2(block, &s, &candidates)
+                                              : kdrt__block_fast_avx2(block, &s, &candidates);
+                    const int found =
+                        mask && kdrt__accept_lanes(best, block, mask, &candidates, &s, ruled);
                     KDRT__COUNT(stats, block_tests, 1);
                     KDRT__COUNT(stats, triangle_tests, count - i < KDRT__LANES ? count - i : KDRT__LANES);
                     if (found && any_hit) return 1;
@@ -3305,8 +3349,8 @@ static int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt
                 if (*box == id) continue;
                 *box = id;
                 KDRT__COUNT(stats, triangle_tests, 1);
-                found = tree->watertight ? kdrt__intersect_watertight(block, lane, &s, best)
-                                         : kdrt__intersect_fast(block, lane, &s, best);
+                found = tree->watertight ? kdrt__intersect_watertight(block, lane, &s, best, ruled)
+                                         : kdrt__intersect_fast(block, lane, &s, best, ruled);
                 if (found && any_hit) return 1;
             }
         }
