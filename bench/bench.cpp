@@ -189,6 +189,10 @@ std::string usage() {
            "  --quality LIST      the SAH build's quality: fast, medium, high, comma-separated:\n"
            "                      the SAH builder runs once per level, named in the Quality\n"
            "                      column (default: kdrt.h's default level)\n"
+           "  --query LIST        plain (kdrt_intersect, kdrt_occluded: the default) and/or filter\n"
+           "                      (their _query forms with a filter that takes every hit: what\n"
+           "                      an unused filter costs), comma-separated: each tree traced with\n"
+           "                      each in turn, named in the Query column\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "                      | shadow (from the primary hits to a point light above the\n"
@@ -243,7 +247,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         std::string v;
         unsigned long long n = 0;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
-            arg == "--quality")
+            arg == "--quality" || arg == "--query")
             csv_only_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
         size_given = size_given || arg == "--size";
@@ -315,6 +319,12 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--sah-costs") {
             if (!value(v) || !parse_sah_costs(v, out.sah_costs, error)) return false;
+        } else if (arg == "--query") {
+            if (!value(v)) return false;
+            if (!parse_choices<std::string>(v, {{"plain", "plain"}, {"filter", "filter"}}, out.queries)) {
+                error = "--query wants plain, filter or both separated by a comma, got '" + v + "'";
+                return false;
+            }
         } else if (arg == "--quality") {
             if (!value(v)) return false;
             if (!parse_choices<kdrt_build_quality>(v,
@@ -529,7 +539,8 @@ size_t count_occlusion_mismatches(const oracle::Oracle &oracle, const std::vecto
 
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
-           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality";
+           "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality;"
+           "Query";
 }
 
 std::string csv_row(const Row &row) {
@@ -554,7 +565,8 @@ std::string csv_row(const Row &row) {
         n = std::snprintf(buf, sizeof buf, "%.3f", row.stats.sah_cost);
         line.append(buf, size_t(n));
     }
-    return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads) + ";" + row.quality;
+    return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads) + ";" + row.quality + ";" +
+           row.query;
 }
 
 // ---- kdrt-bench --accuracy ----

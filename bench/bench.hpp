@@ -34,6 +34,7 @@ struct Options {
     std::vector<std::string> builders{"median"};  // "median" and/or "sah", in the order given
     std::vector<SahCosts> sah_costs;   // --sah-costs: a SAH variant each; empty: kdrt.h's defaults
     std::vector<kdrt_build_quality> qualities;  // --quality: a SAH variant each; empty: the default
+    std::vector<std::string> queries{"plain"};  // --query: "plain" and/or "filter", traced in turn
     RayKind rays = RayKind::primary;
     std::string output;                // "" means stdout
     bool compare_embree = false;
@@ -126,6 +127,7 @@ struct Row {
     std::string sah_costs;             // "KT:KI:EB" on SAH rows, empty otherwise
     unsigned build_threads = 1;        // threads the build ran on (Embree's too)
     std::string quality;               // the SAH build's quality, or Embree's ("low", "medium")
+    std::string query;                 // Query column: "plain" or "filter"; empty on Embree rows
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

@@ -406,13 +406,7 @@ int run(int argc, char **argv) {
                         ++failures;
                         continue;
                     }
-                    if (shadow) {
-                        row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
-                    } else {
-                        row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
-                    }
                     kdrt_tree_get_stats(tree, &row.stats);
-                    kdrt_tree_free(tree);
                     row.builder = variant.builder;
                     row.sah_costs = variant.sah_costs;
                     row.quality = variant.quality;
@@ -420,9 +414,30 @@ int run(int argc, char **argv) {
                     row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
-                    row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, row.triangles)
-                                            : kb::count_mismatches(oracle, refs, sample, rays, hits);
-                    if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
+                    for (const std::string &query : opt.queries) {
+                        // filter: the _query forms with a filter that takes every hit, the
+                        // same answers as the plain queries at the cost of asking.
+                        kdrt_query q = kdrt_default_query();
+                        q.filter = [](void *, const kdrt_ray *, const kdrt_hit *) { return 1; };
+                        const kdrt_query *rules = query == "filter" ? &q : nullptr;
+                        if (shadow && rules) {
+                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded_query(tree, &rays[i], rules); });
+                        } else if (shadow) {
+                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
+                        } else if (rules) {
+                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect_query(tree, &rays[i], rules, &hits[i]); });
+                        } else {
+                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                        }
+                        row.query = query;
+                        row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, row.triangles)
+                                                : kb::count_mismatches(oracle, refs, sample, rays, hits);
+                        if (!csv.line(kb::csv_row(row), write_error)) {
+                            kdrt_tree_free(tree);
+                            return write_failed();
+                        }
+                    }
+                    kdrt_tree_free(tree);
                     progress.step(in.label + " " + variant.builder + (variant.quality.empty() ? "" : " " + variant.quality) +
                                   (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
                                   " leaf " + std::to_string(leaf) + " " + row.intersector);
@@ -440,6 +455,7 @@ int run(int argc, char **argv) {
                 row.quality = kb::peer_quality_name(quality);
                 row.build_threads = build_pool.threads();  // the device's threads, as kdrt's build's
                 row.intersector.clear();  // Embree's own test
+                row.query.clear();
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;
                 row.build_ms = peer.build_ms;

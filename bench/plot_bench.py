@@ -15,13 +15,14 @@ from collections import defaultdict
 
 
 def read_rows(path, tool="plot_bench"):
-    """The rows of a kdrt-bench CSV as dicts; exits naming `tool` when it is not one."""
+    """The rows of a kdrt-bench CSV as dicts; exits naming `tool` when it is not one. Rows of
+    --query filter are left out: the tables and plots compare the plain queries."""
     with open(path, newline="") as f:
         reader = csv.DictReader(f, delimiter=";")
         missing = {"Mesh", "MaxLeafSize", "ElapsedMs"} - set(reader.fieldnames or [])
         if missing:
             sys.exit(f"{tool}: {path}: not a kdrt-bench CSV (no {', '.join(sorted(missing))} column)")
-        return list(reader)
+        return [r for r in reader if r.get("Query") in (None, "", "plain")]
 
 
 def median_by(rows, key, value):

@@ -406,7 +406,8 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     REQUIRE(columns == std::vector<std::string>{"Mesh", "MaxLeafSize", "ElapsedMs", "Builder", "Triangles", "BuildMs",
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
-                                                "Intersector", "SahCost", "SahCosts", "BuildThreads", "Quality"});
+                                                "Intersector", "SahCost", "SahCosts", "BuildThreads", "Quality",
+                                                "Query"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
