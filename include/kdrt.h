@@ -75,10 +75,10 @@
    THREAD SAFETY
      No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
      may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(),
-     kdrt_intersect_k(), the _query variants, the inspection functions, kdrt_hit_surface(), kdrt_spawn_ray()); kdrt_tree_free() must wait
-     until none is running. Builds of different trees may run at once, and one SAH build may run
-     its tasks on many threads through options.scheduler, which then calls options.allocator
-     from those threads.
+     kdrt_intersect_k(), the _query variants, the inspection functions, kdrt_hit_surface(),
+     kdrt_spawn_ray()); kdrt_tree_free() must wait until none is running. Builds of different
+     trees may run at once, and one SAH build may run its tasks on many threads through
+     options.scheduler, which then calls options.allocator from those threads.
 
    ERRORS
      Functions that can fail return kdrt_result; kdrt_result_string() names each code. A failed
@@ -1794,12 +1794,13 @@ static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const flo
    to 0 too), so the bins and the tree are the same either way. */
 static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
 {
+    const float last = bins->top;
     uint32_t r;
     int k;
 #if KDRT__SSE2
     if (bins->sse) {
         const __m128 lo = _mm_loadu_ps(bins->lo), scale = _mm_loadu_ps(bins->scale);
-        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(bins->top);
+        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(last);
         for (r = 0; r < n; ++r) {
             /* Lanes 0 to 2 are x, y, z; lane 3 reads the next field of the reference, unused. */
             uint32_t at[8]; /* the bins of lo[0..2], then of hi[0..2] from 4 */
@@ -1815,7 +1816,6 @@ static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
 #endif
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
-            const float last = bins->top;
             bins->starts[k][kdrt__bin((refs[r].lo[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
             bins->ends[k][kdrt__bin((refs[r].hi[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
         }
@@ -3274,15 +3274,17 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
     float t0, t1;
-    /* From the arguments, not from s, so that it is a constant where they are. */
-    const int ruled = list != NULL || (query && (query->flags || query->filter));
+    /* The query's rules, if it has any, and whether any rule or a list applies: from the
+       arguments, not from s, so that they are constants where the arguments are. */
+    const kdrt_query *rules = query && (query->flags || query->filter) ? query : NULL;
+    const int ruled = list != NULL || rules != NULL;
 
     best->t = 0.0f, best->u = best->v = 0.0f, best->triangle = KDRT_INVALID_ID;
     memset(tested, 0xFF, sizeof tested);
     if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
     best->t = s.tmax;
     s.list = list; /* best is then the bound: the list's last hit once it is full */
-    if (query && (query->flags || query->filter)) s.query = query;
+    s.query = rules;
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
@@ -3364,27 +3366,30 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     }
 }
 
-static int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
-                           kdrt_traversal_stats *stats)
+/* The nearest hit, for kdrt_intersect and its _query and _counted forms; inlined as the walk is,
+   so that each keeps its constant arguments. */
+static KDRT__FORCEINLINE int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray,
+                                             const kdrt_query *query, kdrt_hit *hit,
+                                             kdrt_traversal_stats *stats)
 {
     if (!hit) return 0;
     if (!tree || !ray) {
         hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
         return 0;
     }
-    return kdrt__traverse(tree, ray, NULL, hit, 0, NULL, stats);
+    return kdrt__traverse(tree, ray, query, hit, 0, NULL, stats);
 }
 
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
 {
-    return kdrt__intersect(tree, ray, hit, NULL);
+    return kdrt__intersect(tree, ray, NULL, hit, NULL);
 }
 
 #ifdef KDRT_TRAVERSAL_STATS
 KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
                                     kdrt_traversal_stats *stats)
 {
-    return kdrt__intersect(tree, ray, hit, stats);
+    return kdrt__intersect(tree, ray, NULL, hit, stats);
 }
 #endif
 
@@ -3404,12 +3409,7 @@ KDRT_API kdrt_query kdrt_default_query(void)
 KDRT_API int kdrt_intersect_query(const kdrt_tree *tree, const kdrt_ray *ray,
                                   const kdrt_query *query, kdrt_hit *hit)
 {
-    if (!hit) return 0;
-    if (!tree || !ray) {
-        hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
-        return 0;
-    }
-    return kdrt__traverse(tree, ray, query, hit, 0, NULL, NULL);
+    return kdrt__intersect(tree, ray, query, hit, NULL);
 }
 
 KDRT_API int kdrt_occluded_query(const kdrt_tree *tree, const kdrt_ray *ray,
