@@ -34,4 +34,20 @@ bool take_scene_arg(const std::string &arg, const std::function<std::string()> &
     return true;
 }
 
+bool apply_sets(const std::vector<std::string> &sets, Scene &scene, std::string &error)
+{
+    for (const std::string &s : sets) {
+        const size_t eq = s.find('=');
+        if (eq == std::string::npos || eq == 0) {
+            error = "bad --set '" + s + "': expected KEY=VALUE";
+            return false;
+        }
+        if (!apply_setting(scene, s.substr(0, eq), s.substr(eq + 1), error)) {
+            error = "--set: " + error;
+            return false;
+        }
+    }
+    return true;
+}
+
 }  // namespace kr

@@ -2,6 +2,8 @@
 // size, the threads and the seed.
 #pragma once
 
+#include "scene.hpp"
+
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -21,5 +23,10 @@ struct SceneArgs {
 // --threads (1..1024) or --seed, reads its value with next() into args and returns true; a bad
 // value throws common::UsageError. Any other argument: false, args untouched.
 bool take_scene_arg(const std::string &arg, const std::function<std::string()> &next, SceneArgs &args);
+
+// Each --set KEY=VALUE applied to scene in turn (apply_setting). False at the first bad one, with
+// "bad --set 'TEXT': expected KEY=VALUE" or "--set: " and apply_setting's message in error: a bad
+// command line.
+bool apply_sets(const std::vector<std::string> &sets, Scene &scene, std::string &error);
 
 }  // namespace kr

@@ -148,11 +148,7 @@ int run(int argc, char **argv)
     } else if (!kr::make_preset(args.preset.empty() ? "PICTURE" : args.preset, scene, error)) {
         throw UsageError{error};
     }
-    for (const std::string &s : args.sets) {
-        const size_t eq = s.find('=');
-        if (eq == std::string::npos || eq == 0) throw UsageError{"bad --set '" + s + "': expected KEY=VALUE"};
-        if (!kr::apply_setting(scene, s.substr(0, eq), s.substr(eq + 1), error)) throw UsageError{"--set: " + error};
-    }
+    if (!kr::apply_sets(args.sets, scene, error)) throw UsageError{error};
 
     // The animation's values, each checked before anything is rendered.
     std::string animate_key;

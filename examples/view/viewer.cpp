@@ -3,6 +3,7 @@
 // its target, and the window's pixels composed (image, kd-tree boxes, help).
 #include "viewer.hpp"
 
+#include "command_line.hpp"   // kr::apply_sets
 #include "common/timing.hpp"  // common::Stopwatch
 #include "font.hpp"
 #include "scene_file.hpp"
@@ -123,18 +124,9 @@ bool Viewer::load(int preset_index, std::string &error, bool &usage_error)
         usage_error = true;
         return false;
     }
-    for (const std::string &s : options_.sets) {
-        const size_t eq = s.find('=');
-        if (eq == std::string::npos || eq == 0) {
-            error = "bad --set '" + s + "': expected KEY=VALUE";
-            usage_error = true;
-            return false;
-        }
-        if (!kr::apply_setting(next, s.substr(0, eq), s.substr(eq + 1), error)) {
-            error = "--set: " + error;
-            usage_error = true;
-            return false;
-        }
+    if (!kr::apply_sets(options_.sets, next, error)) {
+        usage_error = true;
+        return false;
     }
     scheduler_.reset();  // no threads of ours while load_mesh forks (see viewer.hpp)
     const bool loaded = kr::load_meshes(next, error) && kr::load_textures(next, error);
