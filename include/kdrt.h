@@ -231,6 +231,41 @@
      as the scalar code does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL bins with the
      scalar code too.
 
+   SCENES
+     A kdrt_scene puts many geometries behind one query, as an engine has them. Each entry
+     (kdrt_geometry) carries the caller's 32-bit ID, a 32-bit mask and a user pointer, and is
+     either a mesh (a kdrt_triangles view, borrowed) or an instance (a tree built once by
+     kdrt_tree_build(), borrowed, placed by a 3x4 affine transform; one tree may be placed any
+     number of times). The scene's meshes are built into one tree together, so a static world
+     costs what one mesh of all their triangles would; the instances sit under a small top-level
+     kd-tree over their world boxes, so moving them (kdrt_scene_set_transform() for each, then
+     kdrt_scene_commit()) rebuilds that top level and nothing else. Zero entries, meshes only and
+     instances only are valid scenes.
+     IDs are unique within a scene: a duplicate is refused (KDRT_ERROR_INVALID_GEOMETRY_ID), so a
+     hit names one entry and ties have one answer. A hit reports the geometry's ID
+     (kdrt_hit.geometry) and the triangle's index within its mesh (an instance's: within its
+     tree's mesh), and kdrt_hit.instance is the instance's ID for a hit through one
+     (KDRT_INVALID_ID otherwise). Equal t goes to the lower geometry ID, then the lower triangle.
+     A kdrt_query works on scenes as on trees, for nearest, any and k nearest hits: its mask
+     skips every geometry whose mask shares no bit with it (an instance before its tree is
+     walked, a mesh's triangles as candidates), its flags cull faces, its filter is asked about
+     each candidate, whose geometry and instance are filled in. Faces are judged in the world:
+     an instance whose transform mirrors (negative determinant) reverses its triangles' winding,
+     so its front and back swap, and kdrt_scene_hit_surface()'s normal turns with them.
+     Exactness: hits on the scene's own meshes are exactly what one tree over them returns,
+     every guarantee of QUERIES AND GUARANTEES included. A ray meeting an instance's box is
+     carried into the tree's space by the inverse transform, evaluated in double and rounded to
+     float once, and the hit is the exact answer for that ray (as in Embree and every
+     instancing tracer): within float rounding of the world-space answer, not bit for bit. The
+     direction is not renormalised, so t is the same parameter in both spaces and hits from
+     anywhere in the scene compare directly. An instance's world box is its tree's box
+     transformed, widened by 2^-20 of its extent and position for the rounding.
+     Ownership: the meshes' buffers and the instances' trees must stay alive and unchanged until
+     kdrt_scene_free(); an instance of a freed tree is the caller's error, which kdrt cannot
+     detect. Threads: queries as on trees (const scene, nothing allocated, any number at once);
+     kdrt_scene_set_transform() and kdrt_scene_commit() change the scene and must not overlap
+     a query on it.
+
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
      reflectance for smooth dielectrics, and Schlick's approximation of it. Conventions:
@@ -327,7 +362,9 @@ typedef enum kdrt_result {
     KDRT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
     KDRT_ERROR_MEDIA_STACK_FULL,   /* kdrt_media_enter() with KDRT_MEDIA_STACK_CAPACITY entered */
     KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
-    KDRT_ERROR_INVALID_IOR         /* an index of refraction that is NaN, infinite, 0 or negative */
+    KDRT_ERROR_INVALID_IOR,        /* an index of refraction that is NaN, infinite, 0 or negative */
+    KDRT_ERROR_INVALID_GEOMETRY_ID, /* a scene's geometry ID used twice, or KDRT_INVALID_ID */
+    KDRT_ERROR_INVALID_TRANSFORM   /* an instance transform that is singular, NaN or infinite */
 } kdrt_result;
 
 typedef struct kdrt_aabb {
@@ -355,6 +392,11 @@ typedef struct kdrt_hit {
     float t;
     float u, v;        /* barycentrics of vertices 1 and 2 */
     uint32_t triangle; /* index into the caller's triangles, KDRT_INVALID_ID on a miss */
+    /* Scene queries (SCENES): the ID of the geometry hit, a mesh's or, through an instance, the
+       instance's; and the instance's ID, or KDRT_INVALID_ID for a hit on a mesh of the scene
+       itself. One-tree queries: 0 and KDRT_INVALID_ID. */
+    uint32_t geometry;
+    uint32_t instance;
 } kdrt_hit;
 
 /* Allocation hooks; user is passed back to both. All zero: KDRT_MALLOC / KDRT_FREE.
@@ -445,6 +487,9 @@ typedef struct kdrt_build_options {
 /* What a build found in the input; filled on success and on failure. */
 typedef struct kdrt_build_report {
     uint32_t invalid_triangle;  /* first triangle that failed the checks, or KDRT_INVALID_ID */
+    uint32_t invalid_geometry;  /* kdrt_scene_build(): the ID of the geometry at fault (a mesh
+                                   holding invalid_triangle, a bad instance or ID), else
+                                   KDRT_INVALID_ID; kdrt_tree_build(): KDRT_INVALID_ID */
     uint32_t skipped_triangles; /* triangles left out under KDRT_BUILD_SKIP_INVALID_TRIANGLES */
     uint32_t degenerate_triangles; /* zero-area triangles, left out because no ray can hit them */
 } kdrt_build_report;
@@ -550,6 +595,8 @@ typedef int (*kdrt_filter_fn)(void *user, const kdrt_ray *ray, const kdrt_hit *c
 
 typedef struct kdrt_query {
     uint32_t flags;        /* kdrt_query_flags; other bits are reserved, 0 */
+    uint32_t mask;         /* the ray's: a geometry counts only where (its mask & mask) != 0;
+                              kdrt_default_query() sets every bit, so 0 hits nothing */
     kdrt_filter_fn filter; /* NULL: every hit that is not culled counts */
     void *user;            /* passed to filter */
 } kdrt_query;
@@ -606,6 +653,76 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
    For a shadow ray to a point q, set dir = q - out->org afterwards and keep tmax below 1. */
 KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
                             kdrt_ray *out);
+
+/* ==== scenes (see SCENES): many meshes and instances behind one query ==== */
+
+typedef enum kdrt_geometry_type {
+    KDRT_GEOMETRY_MESH = 0,    /* triangles, built with the scene's other meshes into one tree */
+    KDRT_GEOMETRY_INSTANCE = 1 /* a built tree placed in the world by an affine transform */
+} kdrt_geometry_type;
+
+/* One entry of a scene. Start from kdrt_mesh_geometry() or kdrt_instance_geometry(). */
+typedef struct kdrt_geometry {
+    kdrt_geometry_type type;
+    uint32_t id;   /* the caller's: unique within the scene, not KDRT_INVALID_ID; hits name it */
+    uint32_t mask; /* a query sees it only where (mask & kdrt_query.mask) != 0; default all bits */
+    void *user;    /* the caller's, handed back by kdrt_scene_geometry() */
+    kdrt_triangles mesh;   /* KDRT_GEOMETRY_MESH: borrowed, as by kdrt_tree_build() */
+    const kdrt_tree *tree; /* KDRT_GEOMETRY_INSTANCE: borrowed, freed only after the scene */
+    /* KDRT_GEOMETRY_INSTANCE: world from object, a 3x4 row-major matrix [R | t]: a point p of
+       the tree goes to x_i = R_i0 p_0 + R_i1 p_1 + R_i2 p_2 + t_i, with transform[4 i + j] = R_ij
+       and transform[4 i + 3] = t_i. Finite and invertible; rotations, scales (uniform or not),
+       mirrors and shears are all fine. */
+    float transform[12];
+} kdrt_geometry;
+
+typedef struct kdrt_scene kdrt_scene;
+
+/* A mesh entry: id, mesh (copied, its buffers borrowed), every mask bit, no user pointer. */
+KDRT_API kdrt_geometry kdrt_mesh_geometry(uint32_t id, const kdrt_triangles *mesh);
+/* An instance entry: id, tree (borrowed), transform (NULL: identity), every mask bit. */
+KDRT_API kdrt_geometry kdrt_instance_geometry(uint32_t id, const kdrt_tree *tree,
+                                              const float transform[12]);
+/* Builds a scene over count entries (0 is fine: every ray misses). The meshes are built into one
+   tree with options (NULL: defaults); the instances go under a top-level tree over their world
+   boxes. On failure *out_scene is NULL, nothing stays allocated, and report (which may be NULL)
+   names the geometry at fault: a mesh's bad triangle or view as kdrt_tree_build() would,
+   KDRT_ERROR_NULL_ARGUMENT for an instance without a tree, KDRT_ERROR_INVALID_TRANSFORM,
+   KDRT_ERROR_INVALID_GEOMETRY_ID for an ID used twice or KDRT_INVALID_ID, KDRT_ERROR_INVALID_OPTION
+   for an unknown type. */
+KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t count,
+                                      const kdrt_build_options *options, kdrt_scene **out_scene,
+                                      kdrt_build_report *report);
+KDRT_API void kdrt_scene_free(kdrt_scene *scene); /* NULL is fine; the borrowed trees stay */
+/* Moves instance id to a new transform, from the next kdrt_scene_commit() on; until then queries
+   see the scene as it was. KDRT_ERROR_INVALID_GEOMETRY_ID when id is no instance of the scene,
+   KDRT_ERROR_INVALID_TRANSFORM (nothing changes). Not while queries run. */
+KDRT_API kdrt_result kdrt_scene_set_transform(kdrt_scene *scene, uint32_t id,
+                                              const float transform[12]);
+/* Applies the moves: rebuilds the top-level tree over the instances' boxes, and only that.
+   KDRT_ERROR_OUT_OF_MEMORY leaves the scene as it was before the moves. Not while queries run. */
+KDRT_API kdrt_result kdrt_scene_commit(kdrt_scene *scene);
+/* The scene's entry with this ID, as built or moved (transform: the committed one), or NULL. */
+KDRT_API const kdrt_geometry *kdrt_scene_geometry(const kdrt_scene *scene, uint32_t id);
+/* The world box of everything in the scene (kdrt_aabb_empty() when it holds no triangle). */
+KDRT_API kdrt_aabb kdrt_scene_bounds(const kdrt_scene *scene);
+
+/* The one-tree queries on a scene, query NULL meaning kdrt_default_query(). Equal t goes to the
+   lower geometry ID, then the lower triangle index. kdrt_scene_hit_surface() and
+   kdrt_scene_spawn_ray() give world-space points and unit normals for hits through instances
+   too (the normal transformed by the inverse transpose, so it stays perpendicular under any
+   scale or shear; a mirror turns it with the winding). */
+KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
+                                  const kdrt_query *query, kdrt_hit *hit);
+KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
+                                 const kdrt_query *query);
+KDRT_API uint32_t kdrt_scene_intersect_k(const kdrt_scene *scene, const kdrt_ray *ray,
+                                         const kdrt_query *query, kdrt_hit *hits,
+                                         uint32_t capacity);
+KDRT_API int kdrt_scene_hit_surface(const kdrt_scene *scene, const kdrt_hit *hit, float point[3],
+                                    float normal[3]);
+KDRT_API int kdrt_scene_spawn_ray(const kdrt_scene *scene, const kdrt_hit *hit, const float dir[3],
+                                  kdrt_ray *out);
 
 /* ==== optics (see OPTICS): reflection, refraction, Fresnel reflectance, the medium stack ==== */
 
@@ -807,8 +924,25 @@ typedef char kdrt__block_is_5_cache_lines[sizeof(kdrt__block) == 320 ? 1 : -1];
 
 static int kdrt__cpu_has_avx2(void); /* 1 where the AVX2 kernel is compiled in and can run */
 
-struct kdrt_tree {
+/* A mesh of a tree. A tree numbers its triangles across its meshes: mesh k's triangle i is
+   first + i. kdrt_tree_build() makes one (ID 0); a scene's mesh tree one per mesh geometry, in
+   ID order, so that the lower number is the lower (geometry ID, triangle), the tie rule. */
+typedef struct kdrt__part {
     kdrt_triangles mesh; /* borrowed; position_stride resolved (never 0) */
+    uint32_t first;      /* the tree's number for its triangle 0 */
+    uint32_t id, mask;   /* the geometry's */
+} kdrt__part;
+
+/* The meshes a tree is built over: parts[0 .. count), triangles in all. */
+typedef struct kdrt__meshes {
+    const kdrt__part *parts;
+    uint32_t count, triangles;
+} kdrt__meshes;
+
+struct kdrt_tree {
+    kdrt__meshes meshes; /* parts: &one, or a scene's array */
+    kdrt__part one;      /* kdrt_tree_build()'s mesh */
+    int masks_full;      /* every part's mask has every bit: a ray's mask needs no test */
     int watertight;      /* options.intersector: 1 watertight, 0 fast (Moeller-Trumbore) */
     int simd;            /* 1: the AVX2 kernel (KDRT_KERNEL_AVX2) */
     kdrt_allocator allocator;
@@ -895,13 +1029,32 @@ static void kdrt__load_vertex(const kdrt_triangles *m, uint32_t vertex, float ou
     memcpy(out, base + (size_t)vertex * m->position_stride, 3 * sizeof(float));
 }
 
-static void kdrt__load_triangle(const kdrt_triangles *m, uint32_t tri, float p[3][3])
+static void kdrt__load_mesh_triangle(const kdrt_triangles *m, uint32_t tri, float p[3][3])
 {
     uint32_t idx[3];
     kdrt__triangle_indices(m, tri, idx);
     kdrt__load_vertex(m, idx[0], p[0]);
     kdrt__load_vertex(m, idx[1], p[1]);
     kdrt__load_vertex(m, idx[2], p[2]);
+}
+
+/* The part holding the tree's triangle number tri: the last one starting at or before it. */
+static const kdrt__part *kdrt__part_of(const kdrt__meshes *m, uint32_t tri)
+{
+    uint32_t lo = 0, hi = m->count - 1u;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo + 1u) / 2u;
+        if (m->parts[mid].first <= tri) lo = mid;
+        else hi = mid - 1u;
+    }
+    return &m->parts[lo];
+}
+
+/* The corners of the tree's triangle number tri (checked by the build). */
+static void kdrt__load_triangle(const kdrt__meshes *m, uint32_t tri, float p[3][3])
+{
+    const kdrt__part *part = m->count == 1 ? m->parts : kdrt__part_of(m, tri);
+    kdrt__load_mesh_triangle(&part->mesh, tri - part->first, p);
 }
 
 /* Checks the view itself; *m gets a resolved copy (stride never 0). */
@@ -971,6 +1124,10 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
     case KDRT_ERROR_MEDIA_STACK_FULL: return "the medium stack is full (KDRT_MEDIA_STACK_CAPACITY)";
     case KDRT_ERROR_NOT_IN_MEDIUM: return "leaving an object the medium stack does not hold";
     case KDRT_ERROR_INVALID_IOR: return "an index of refraction is NaN, infinite, zero or negative";
+    case KDRT_ERROR_INVALID_GEOMETRY_ID:
+        return "a scene's geometry ID is used twice, is KDRT_INVALID_ID, or names no instance";
+    case KDRT_ERROR_INVALID_TRANSFORM:
+        return "an instance transform is singular or has a NaN or infinite entry";
     }
     return "unknown kdrt_result";
 }
@@ -1016,7 +1173,7 @@ KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aab
     float p[3][3];
     if (report) {
         memset(report, 0, sizeof *report);
-        report->invalid_triangle = KDRT_INVALID_ID;
+        report->invalid_triangle = report->invalid_geometry = KDRT_INVALID_ID;
     }
     if (!out_box) return KDRT_ERROR_NULL_ARGUMENT;
     *out_box = kdrt_aabb_empty();
@@ -1049,12 +1206,24 @@ typedef struct kdrt__hit_list {
     uint32_t count, capacity;
 } kdrt__hit_list;
 
+/* What decides and names a candidate beyond the plain walk: a query's rules, and the tree's
+   meshes and instance to name hits by (their geometry ID and own triangle index). */
+typedef struct kdrt__rules {
+    uint32_t flags;   /* kdrt_query_flags, front and back swapped in a mirroring instance */
+    uint32_t mask;    /* the ray's; tested against each part's unless all of those are full */
+    int test_mask;
+    kdrt_filter_fn filter;
+    void *user;
+    const kdrt_ray *ray;        /* the caller's (in the world, for an instance), for the filter */
+    const kdrt__meshes *meshes; /* the tree's */
+    uint32_t instance;          /* the instance being walked, or KDRT_INVALID_ID */
+} kdrt__rules;
+
 typedef struct kdrt__ray_setup {
     float org[3], dir[3], inv_dir[3];
     float tmin, tmax;
     kdrt__hit_list *list; /* kdrt_intersect_k's, else NULL: the nearest hit only */
-    const kdrt_query *query; /* culling or a filter, else NULL: every hit counts */
-    const kdrt_ray *ray;     /* the caller's, for the filter */
+    const kdrt__rules *rules; /* a query's rules or a list, else NULL: every hit counts */
     /* Watertight test: kz is the axis of the largest |dir| component, kx and ky the others
        (swapped when dir[kz] < 0 to keep the winding); the shear maps dir onto +z. */
     int kx, ky, kz;
@@ -1075,7 +1244,7 @@ static int kdrt__setup_ray(const kdrt_ray *ray, kdrt__ray_setup *s)
     if (ray->tmin != ray->tmin) return 0; /* NaN */
     s->tmin = ray->tmin > 0.0f ? ray->tmin : 0.0f;
     s->tmax = ray->tmax;
-    s->list = NULL, s->query = NULL, s->ray = ray;
+    s->list = NULL, s->rules = NULL;
     if (!nonzero || !(s->tmin <= s->tmax)) return 0; /* also when tmax is NaN */
 
     s->kz = 0;
@@ -1147,7 +1316,7 @@ typedef struct kdrt__builder {
     const kdrt_allocator *allocator;
     const float *lo, *hi, *centroid; /* per triangle (by caller's index), 3 floats each */
     unsigned char *side;             /* per triangle: KDRT__SIDE_* of the split being made */
-    const kdrt_triangles *mesh;      /* the SAH builder clips triangles to node boxes */
+    const kdrt__meshes *mesh;        /* the SAH builder clips triangles to node boxes */
     float sah_trav, sah_isect, sah_empty_bonus;
     /* The SAH build's quality: nodes of at most exact_max references sweep every candidate
        (events kept in order); larger ones bin into `bins` bins, and when the bins find no split
@@ -1333,7 +1502,7 @@ static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const 
 /* Perfect split of a triangle the plane cuts: the part of triangle tri inside the node's box
    [child_lo[0], child_hi[1]] (Sutherland-Hodgman in double), cut by the plane into the part in
    each child's box; their boxes go to lo[c], hi[c]. Returns bit c set when child c gets some. */
-static unsigned kdrt__clip_split(const kdrt_triangles *m, uint32_t tri, int axis, float pos,
+static unsigned kdrt__clip_split(const kdrt__meshes *m, uint32_t tri, int axis, float pos,
                                  float child_lo[2][3], float child_hi[2][3], float lo[2][3],
                                  float hi[2][3])
 {
@@ -2390,7 +2559,7 @@ static kdrt_result kdrt__sah_build(kdrt__builder *b, const kdrt_scheduler *sched
    With a scheduler, the nodes are packed in KDRT__CHUNKS ranges as tasks, each range's first
    block and reference counted beforehand: the same blocks either way. */
 typedef struct kdrt__packing {
-    const kdrt_triangles *mesh;
+    const kdrt__meshes *mesh;
     kdrt__node *nodes;
     const uint32_t *refs;
     kdrt_tree *tree;
@@ -2427,7 +2596,7 @@ static void kdrt__pack_range(void *data, uint32_t chunk)
 }
 
 static kdrt_result kdrt__pack_blocks(const kdrt_allocator *a, const kdrt_scheduler *scheduler,
-                                     const kdrt_triangles *m, kdrt__node *nodes,
+                                     const kdrt__meshes *m, kdrt__node *nodes,
                                      uint32_t node_count, const uint32_t *refs, kdrt_tree *tree)
 {
     kdrt__packing p;
@@ -2541,7 +2710,7 @@ static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
 /* The builder's settings from checked options, a zero option replaced by its default; the
    builder keeps pointers to opt and m, and its arrays start empty. */
 static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
-                               const kdrt_triangles *m)
+                               const kdrt__meshes *m)
 {
     memset(b, 0, sizeof *b);
     b->allocator = &opt->allocator;
@@ -2553,7 +2722,7 @@ static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
                                                       : KDRT_DEFAULT_SAH_INTERSECTION_COST;
     b->sah_empty_bonus =
         opt->sah_empty_bonus > 0.0f ? opt->sah_empty_bonus : KDRT_DEFAULT_SAH_EMPTY_BONUS;
-    b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangle_count);
+    b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangles);
     if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
     b->sse = !(opt->flags & KDRT_BUILD_SCALAR_KERNEL);
     switch (opt->quality) {
@@ -2571,13 +2740,18 @@ static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
     }
 }
 
-/* An empty tree over m, with no nodes yet; NULL when out of memory. */
-static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_triangles *m)
+/* An empty tree over the meshes (NULL: tree->one, for the caller to fill in), with no nodes
+   yet; NULL when out of memory. */
+static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt__meshes *m)
 {
     kdrt_tree *tree = (kdrt_tree *)kdrt__alloc(&opt->allocator, sizeof *tree);
+    uint32_t i;
     if (!tree) return NULL;
     memset(tree, 0, sizeof *tree);
-    tree->mesh = *m;
+    if (m) tree->meshes = *m;
+    else tree->meshes.parts = &tree->one, tree->meshes.count = 1;
+    tree->masks_full = 1;
+    for (i = 0; m && i < m->count; ++i) tree->masks_full &= m->parts[i].mask == 0xFFFFFFFFu;
     tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
     tree->simd = !(opt->flags & KDRT_BUILD_SCALAR_KERNEL) && kdrt__cpu_has_avx2();
     tree->stats.kernel = tree->simd ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR;
@@ -2598,7 +2772,7 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt_trian
 
 typedef struct kdrt__preparing {
     kdrt__builder *b;
-    const kdrt_triangles *m;
+    const kdrt__meshes *m;
     float *boxes; /* b->lo, b->hi and b->centroid, writable */
     kdrt_aabb bounds[KDRT__CHUNKS];
     kdrt_result first_error[KDRT__CHUNKS]; /* each range's first invalid triangle's error */
@@ -2607,15 +2781,16 @@ typedef struct kdrt__preparing {
 static void kdrt__prepare_range(void *data, uint32_t chunk)
 {
     kdrt__preparing *p = (kdrt__preparing *)data;
-    const size_t count = p->m->triangle_count;
-    uint32_t tri, end = kdrt__chunk_start(p->m->triangle_count, chunk + 1u);
+    const size_t count = p->m->triangles;
+    uint32_t tri, end = kdrt__chunk_start(p->m->triangles, chunk + 1u);
     float c[3][3];
     int a, k;
     p->bounds[chunk] = kdrt_aabb_empty();
     p->first_error[chunk] = KDRT_SUCCESS;
-    for (tri = kdrt__chunk_start(p->m->triangle_count, chunk); tri < end; ++tri) {
+    for (tri = kdrt__chunk_start(p->m->triangles, chunk); tri < end; ++tri) {
         float *lo = p->boxes + 3 * (size_t)tri, *hi = lo + 3 * count, *centroid = hi + 3 * count;
-        kdrt_result r = kdrt__check_triangle(p->m, tri, c);
+        const kdrt__part *part = p->m->count == 1 ? p->m->parts : kdrt__part_of(p->m, tri);
+        kdrt_result r = kdrt__check_triangle(&part->mesh, tri - part->first, c);
         if (r != KDRT_SUCCESS) {
             if (p->first_error[chunk] == KDRT_SUCCESS) p->first_error[chunk] = r;
             p->b->side[tri] = KDRT__TRIANGLE_INVALID;
@@ -2642,12 +2817,12 @@ static void kdrt__prepare_range(void *data, uint32_t chunk)
     }
 }
 
-static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangles *m,
+static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt__meshes *m,
                                            uint32_t flags, const kdrt_scheduler *scheduler,
                                            kdrt_aabb *bounds, float **scratch, uint32_t **valid,
                                            uint32_t *n, kdrt_build_report *report)
 {
-    const size_t count = m->triangle_count;
+    const size_t count = m->triangles;
     kdrt__preparing p;
     uint32_t tri, skipped = 0, degenerate = 0, i;
     size_t bytes;
@@ -2675,7 +2850,7 @@ static kdrt_result kdrt__prepare_triangles(kdrt__builder *b, const kdrt_triangle
             kdrt_aabb_grow(bounds, p.bounds[i].min);
             kdrt_aabb_grow(bounds, p.bounds[i].max);
         }
-    for (tri = 0; tri < m->triangle_count; ++tri) {
+    for (tri = 0; tri < m->triangles; ++tri) {
         if (b->side[tri] == KDRT__TRIANGLE_INVALID) {
             if (report && report->invalid_triangle == KDRT_INVALID_ID)
                 report->invalid_triangle = tri;
@@ -2774,46 +2949,61 @@ static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triang
     tree->stats.sah_cost = kdrt__sah_cost(tree, b->sah_trav, b->sah_isect);
 }
 
+/* Builds the nodes and blocks of a new tree over its meshes, with checked options; on failure
+   frees the tree. */
+static kdrt_result kdrt__build_tree(kdrt_tree *tree, const kdrt_build_options *opt,
+                                    kdrt_build_report *report)
+{
+    kdrt__builder b;
+    float *scratch = NULL;
+    uint32_t *valid = NULL, n = 0;
+    kdrt_result r;
+    kdrt__builder_init(&b, opt, &tree->meshes);
+    r = kdrt__prepare_triangles(&b, &tree->meshes, opt->flags, &opt->scheduler, &tree->bounds,
+                                &scratch, &valid, &n, report);
+    if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, opt, valid, n, &tree->bounds);
+    if (r == KDRT_SUCCESS)
+        r = kdrt__pack_blocks(&opt->allocator, &opt->scheduler, &tree->meshes, b.nodes,
+                              b.node_count, b.refs, tree);
+    if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n);
+    kdrt__free(&opt->allocator, scratch);
+    kdrt__free(&opt->allocator, b.refs); /* the blocks hold the triangles now */
+    if (r != KDRT_SUCCESS) {
+        kdrt__free(&opt->allocator, b.nodes);
+        kdrt_tree_free(tree); /* and the blocks packed so far */
+    }
+    return r;
+}
+
+/* A report with nothing found yet. */
+static void kdrt__report_init(kdrt_build_report *report)
+{
+    if (!report) return;
+    memset(report, 0, sizeof *report);
+    report->invalid_triangle = report->invalid_geometry = KDRT_INVALID_ID;
+}
+
 KDRT_API kdrt_result kdrt_tree_build(const kdrt_triangles *mesh, const kdrt_build_options *options,
                                      kdrt_tree **out_tree, kdrt_build_report *report)
 {
     kdrt_build_options opt = options ? *options : kdrt_default_build_options();
     kdrt_triangles m;
-    kdrt__builder b;
     kdrt_tree *tree;
-    float *scratch = NULL;
-    uint32_t *valid = NULL, n = 0;
     kdrt_result r;
 
-    if (report) {
-        memset(report, 0, sizeof *report);
-        report->invalid_triangle = KDRT_INVALID_ID;
-    }
+    kdrt__report_init(report);
     if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
     *out_tree = NULL;
     r = kdrt__check_view(mesh, &m);
     if (r == KDRT_SUCCESS) r = kdrt__check_options(&opt);
     if (r != KDRT_SUCCESS) return r;
-    kdrt__builder_init(&b, &opt, &m);
-    tree = kdrt__tree_new(&opt, &m);
+    tree = kdrt__tree_new(&opt, NULL);
     if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
-
-    r = kdrt__prepare_triangles(&b, &m, opt.flags, &opt.scheduler, &tree->bounds, &scratch, &valid,
-                                &n, report);
-    if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, &opt, valid, n, &tree->bounds);
-    if (r == KDRT_SUCCESS)
-        r = kdrt__pack_blocks(&opt.allocator, &opt.scheduler, &m, b.nodes, b.node_count, b.refs,
-                              tree);
-    if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n);
-    kdrt__free(&opt.allocator, scratch);
-    kdrt__free(&opt.allocator, b.refs); /* the blocks hold the triangles now */
-    if (r != KDRT_SUCCESS) {
-        kdrt__free(&opt.allocator, b.nodes);
-        kdrt_tree_free(tree); /* and the blocks packed so far */
-        return r;
-    }
-    *out_tree = tree;
-    return KDRT_SUCCESS;
+    tree->one.mesh = m, tree->one.mask = 0xFFFFFFFFu;
+    tree->meshes.triangles = m.triangle_count;
+    r = kdrt__build_tree(tree, &opt, report);
+    if (r == KDRT_SUCCESS) *out_tree = tree;
+    return r;
 }
 
 KDRT_API void kdrt_tree_free(kdrt_tree *tree)
@@ -2909,38 +3099,57 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
 
 /* ==== intersection tests ==== */
 
+/* A candidate on the tree's triangle number tri as the caller knows it: its geometry's ID, the
+   instance's, and its index within its mesh. */
+static void kdrt__name_hit(const kdrt__rules *r, uint32_t tri, kdrt_hit *hit)
+{
+    const kdrt__part *part = r->meshes->count == 1 ? r->meshes->parts : kdrt__part_of(r->meshes, tri);
+    hit->triangle = tri - part->first;
+    hit->geometry = r->instance != KDRT_INVALID_ID ? r->instance : part->id;
+    hit->instance = r->instance;
+}
+
+/* The scene's order of hits: t, then geometry ID, then triangle. */
+static int kdrt__hit_before(const kdrt_hit *a, const kdrt_hit *b)
+{
+    if (a->t != b->t) return a->t < b->t;
+    if (a->geometry != b->geometry) return a->geometry < b->geometry;
+    return a->triangle < b->triangle;
+}
+
 /* kdrt_intersect_k: a hit before the bound goes into the list, in order, once per triangle (one
    split across leaves is met again, with the same answer). While the list has room the bound is
    the ray's tmax; once it is full, the bound is its last hit, so the traversal skips whatever
-   lies beyond, as it does beyond the nearest hit. */
-static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, uint32_t tri, float t, float u,
-                          float v)
+   lies beyond, as it does beyond the nearest hit. One list may take the hits of several walks
+   (a scene's meshes and instances): they are named, and ordered, as the caller knows them. */
+static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, const kdrt_hit *hit)
 {
     uint32_t i;
     for (i = 0; i < list->count; ++i)
-        if (list->hits[i].triangle == tri) return 0;
-    /* Full: the new hit comes before the last (the bound), which drops out. */
+        if (list->hits[i].triangle == hit->triangle && list->hits[i].geometry == hit->geometry)
+            return 0;
+    /* Full: the new hit must come before the last, which drops out. */
+    if (list->count == list->capacity && !kdrt__hit_before(hit, &list->hits[list->count - 1u]))
+        return 0;
     i = list->count < list->capacity ? list->count : list->capacity - 1u;
-    for (; i > 0 && (list->hits[i - 1].t > t ||
-                     (list->hits[i - 1].t == t && list->hits[i - 1].triangle > tri));
-         --i)
+    for (; i > 0 && kdrt__hit_before(hit, &list->hits[i - 1]); --i)
         list->hits[i] = list->hits[i - 1];
-    list->hits[i].t = t, list->hits[i].u = u, list->hits[i].v = v, list->hits[i].triangle = tri;
+    list->hits[i] = *hit;
     if (list->count < list->capacity) ++list->count;
-    if (list->count == list->capacity) *bound = list->hits[list->count - 1u];
+    if (list->count == list->capacity) bound->t = list->hits[list->count - 1u].t;
     return 1;
 }
 
-/* Whether the query counts the candidate: its face not culled, and its filter says yes. */
-static int kdrt__query_counts(const kdrt__ray_setup *s, uint32_t tri, float t, float u, float v,
-                              int front)
+/* Whether the rules count the candidate (named): its geometry seen by the ray's mask, its face
+   not culled, and its filter says yes. */
+static int kdrt__counts(const kdrt__rules *r, uint32_t tri, const kdrt_hit *candidate, int front)
 {
-    const kdrt_query *q = s->query;
-    kdrt_hit candidate;
-    if (q->flags & (front ? KDRT_QUERY_CULL_FRONT_FACES : KDRT_QUERY_CULL_BACK_FACES)) return 0;
-    if (!q->filter) return 1;
-    candidate.t = t, candidate.u = u, candidate.v = v, candidate.triangle = tri;
-    return q->filter(q->user, s->ray, &candidate) != 0;
+    if (r->test_mask) {
+        const kdrt__part *part = kdrt__part_of(r->meshes, tri);
+        if (!(part->mask & r->mask)) return 0;
+    }
+    if (r->flags & (front ? KDRT_QUERY_CULL_FRONT_FACES : KDRT_QUERY_CULL_BACK_FACES)) return 0;
+    return !r->filter || r->filter(r->user, r->ray, candidate) != 0;
 }
 
 /* Both triangle tests accept t in [tmin, best->t], equal t going to the lower triangle index so
@@ -2979,9 +3188,14 @@ static int kdrt__accept(kdrt_hit *best, uint32_t tri, float t, float u, float v,
 KDRT__NOINLINE static int kdrt__accept_ruled(kdrt_hit *best, uint32_t tri, float t, float u,
                                              float v, int front, const kdrt__ray_setup *s)
 {
-    if (!kdrt__nearer(best, tri, t, u, v, s)) return 0;
-    if (s->query && !kdrt__query_counts(s, tri, t, u, v, front)) return 0;
-    if (s->list) return kdrt__keep_hit(s->list, best, tri, t, u, v);
+    kdrt_hit candidate;
+    /* A list orders by the named hit (kdrt__keep_hit); the nearest hit by the tree's number. */
+    if (s->list ? !kdrt__nearer(best, 0u, t, u, v, s) : !kdrt__nearer(best, tri, t, u, v, s))
+        return 0;
+    candidate.t = t, candidate.u = u, candidate.v = v;
+    kdrt__name_hit(s->rules, tri, &candidate);
+    if (!kdrt__counts(s->rules, tri, &candidate, front)) return 0;
+    if (s->list) return kdrt__keep_hit(s->list, best, &candidate);
     best->t = t, best->u = u, best->v = v, best->triangle = tri;
     return 1;
 }
@@ -3252,10 +3466,8 @@ typedef struct kdrt__todo {
 #define KDRT__COUNT(stats, field, n) ((void)(stats)) /* compiled out: the hot loop stays as it is */
 #endif
 
-/* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
-   counting is compiled in and it is not NULL, gets the work done. */
-/* Inlined into each query, so that a plain one (no query, no list: ruled a constant 0) is the
-   walk without rules, as fast as before they existed. */
+/* Inlined where a walk's speed depends on it: the plain queries are the walk without rules,
+   as fast as before rules existed, only if their constant arguments reach it. */
 #if defined(__GNUC__) || defined(__clang__)
 #define KDRT__FORCEINLINE __attribute__((always_inline)) inline
 #elif defined(_MSC_VER)
@@ -3263,8 +3475,48 @@ typedef struct kdrt__todo {
 #else
 #define KDRT__FORCEINLINE
 #endif
+
+/* One inner node of a walk (node, reached over [*t0, *t1]): the child to visit next, with its
+   range in *t0, *t1, the other pushed on the stack when the ray may reach it too. */
+static KDRT__FORCEINLINE uint32_t kdrt__descend(const kdrt__node *n, uint32_t node,
+                                               const kdrt__ray_setup *s, float *t0, float *t1,
+                                               kdrt__todo *stack, uint32_t *sp)
+{
+    uint32_t axis = kdrt__node_axis(n);
+    float split = n->u.split, o = s->org[axis];
+    float t_split = (split - o) * s->inv_dir[axis];
+    int below_first = o < split || (o == split && s->dir[axis] <= 0.0f);
+    uint32_t near_child = below_first ? node + 1 : kdrt__node_above(n);
+    uint32_t far_child = below_first ? kdrt__node_above(n) : node + 1;
+    if (t_split != t_split) {
+        /* 0 * infinity: the ray lies in the plane and may hit either side's triangles. */
+        KDRT_ASSERT(*sp < KDRT_MAX_DEPTH);
+        stack[*sp].node = far_child, stack[*sp].t0 = *t0, stack[*sp].t1 = *t1, ++*sp;
+        return near_child;
+    }
+    if (t_split == 0.0f && *t0 <= 0.0f) {
+        /* The origin is on the plane: the ray moves into near_child, but at t = 0 it also
+           touches far_child's triangles lying in the plane. */
+        KDRT_ASSERT(*sp < KDRT_MAX_DEPTH);
+        stack[*sp].node = near_child, stack[*sp].t0 = *t0, stack[*sp].t1 = *t1, ++*sp;
+        *t1 = 0.0f;
+        return far_child;
+    }
+    if (t_split <= 0.0f || t_split * (1.0f - KDRT__T_SLACK) > *t1)
+        return near_child; /* the plane is behind the origin or beyond the range */
+    if (t_split * (1.0f + KDRT__T_SLACK) < *t0) return far_child; /* the range starts past it */
+    KDRT_ASSERT(*sp < KDRT_MAX_DEPTH);
+    stack[*sp].node = far_child, stack[*sp].t0 = t_split * (1.0f - KDRT__T_SLACK);
+    stack[*sp].t1 = *t1, ++*sp;
+    *t1 = t_split * (1.0f + KDRT__T_SLACK);
+    return near_child;
+}
+
+/* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
+   counting is compiled in and it is not NULL, gets the work done. Inlined into each query, so
+   that a plain one (no rules, no list: ruled a constant 0) is the walk without rules. */
 static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray,
-                                            const kdrt_query *query, kdrt_hit *best, int any_hit,
+                                            const kdrt__rules *rules, kdrt_hit *best, int any_hit,
                                             kdrt__hit_list *list, kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
@@ -3274,51 +3526,26 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
     float t0, t1;
-    /* The query's rules, if it has any, and whether any rule or a list applies: from the
-       arguments, not from s, so that they are constants where the arguments are. */
-    const kdrt_query *rules = query && (query->flags || query->filter) ? query : NULL;
-    const int ruled = list != NULL || rules != NULL;
+    /* Whether rules or a list apply (a list comes with rules, which name its hits): from the
+       arguments, not from s, so that it is a constant where they are. */
+    const int ruled = rules != NULL;
 
+    KDRT_ASSERT(!list || rules);
     best->t = 0.0f, best->u = best->v = 0.0f, best->triangle = KDRT_INVALID_ID;
+    best->geometry = 0, best->instance = KDRT_INVALID_ID;
     memset(tested, 0xFF, sizeof tested);
     if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
     best->t = s.tmax;
     s.list = list; /* best is then the bound: the list's last hit once it is full */
-    s.query = rules;
+    s.rules = rules;
+    if (list && list->count == list->capacity && list->hits[list->count - 1u].t < best->t)
+        best->t = list->hits[list->count - 1u].t; /* full from an earlier walk (scenes) */
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
         if (!kdrt__node_is_leaf(n)) {
-            uint32_t axis = kdrt__node_axis(n);
-            float split = n->u.split, o = s.org[axis];
             KDRT__COUNT(stats, inner_nodes, 1);
-            float t_split = (split - o) * s.inv_dir[axis];
-            int below_first = o < split || (o == split && s.dir[axis] <= 0.0f);
-            uint32_t near_child = below_first ? node + 1 : kdrt__node_above(n);
-            uint32_t far_child = below_first ? kdrt__node_above(n) : node + 1;
-            if (t_split != t_split) {
-                /* 0 * infinity: the ray lies in the plane and may hit either side's triangles. */
-                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
-                stack[sp].node = far_child, stack[sp].t0 = t0, stack[sp].t1 = t1, ++sp;
-                node = near_child;
-            } else if (t_split == 0.0f && t0 <= 0.0f) {
-                /* The origin is on the plane: the ray moves into near_child, but at t = 0 it
-                   also touches far_child's triangles lying in the plane. */
-                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
-                stack[sp].node = near_child, stack[sp].t0 = t0, stack[sp].t1 = t1, ++sp;
-                node = far_child;
-                t1 = 0.0f;
-            } else if (t_split <= 0.0f || t_split * (1.0f - KDRT__T_SLACK) > t1) {
-                node = near_child; /* the plane is behind the origin or beyond the range */
-            } else if (t_split * (1.0f + KDRT__T_SLACK) < t0) {
-                node = far_child; /* the range starts past the plane */
-            } else {
-                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
-                stack[sp].node = far_child, stack[sp].t0 = t_split * (1.0f - KDRT__T_SLACK);
-                stack[sp].t1 = t1, ++sp;
-                node = near_child;
-                t1 = t_split * (1.0f + KDRT__T_SLACK);
-            }
+            node = kdrt__descend(n, node, &s, &t0, &t1, stack, &sp);
             continue;
         }
         {
@@ -3366,30 +3593,61 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     }
 }
 
-/* The nearest hit, for kdrt_intersect and its _query and _counted forms; inlined as the walk is,
-   so that each keeps its constant arguments. */
+/* The rules for a walk of tree under query (NULL: none) in *storage, or NULL when the walk needs
+   none (no flag, no filter, no mask to test, no list: force) and can run plain. instance: the
+   instance being walked (KDRT_INVALID_ID: none), mirrored when its transform is. The caller has
+   turned away a query mask of 0, which sees nothing. */
+static const kdrt__rules *kdrt__rules_for(const kdrt_query *query, const kdrt_ray *ray,
+                                          const kdrt_tree *tree, uint32_t instance, int mirrored,
+                                          int force, kdrt__rules *storage)
+{
+    uint32_t flags = query ? query->flags : 0u;
+    const int test_mask = query && !tree->masks_full;
+    if (!flags && !(query && query->filter) && !test_mask && !force) return NULL;
+    if (mirrored) /* the world sees the other face */
+        flags = (flags & KDRT_QUERY_CULL_BACK_FACES ? (uint32_t)KDRT_QUERY_CULL_FRONT_FACES : 0u) |
+                (flags & KDRT_QUERY_CULL_FRONT_FACES ? (uint32_t)KDRT_QUERY_CULL_BACK_FACES : 0u);
+    storage->flags = flags;
+    storage->mask = query ? query->mask : 0xFFFFFFFFu;
+    storage->test_mask = test_mask;
+    storage->filter = query ? query->filter : NULL;
+    storage->user = query ? query->user : NULL;
+    storage->ray = ray;
+    storage->meshes = &tree->meshes;
+    storage->instance = instance;
+    return storage;
+}
+
+/* A miss, as the queries report it. */
+static void kdrt__miss(kdrt_hit *hit)
+{
+    hit->t = hit->u = hit->v = 0.0f;
+    hit->triangle = KDRT_INVALID_ID, hit->geometry = 0, hit->instance = KDRT_INVALID_ID;
+}
+
+/* The nearest hit, for kdrt_intersect and its _counted form; inlined as the walk is, so that
+   each keeps its constant arguments. */
 static KDRT__FORCEINLINE int kdrt__intersect(const kdrt_tree *tree, const kdrt_ray *ray,
-                                             const kdrt_query *query, kdrt_hit *hit,
-                                             kdrt_traversal_stats *stats)
+                                             kdrt_hit *hit, kdrt_traversal_stats *stats)
 {
     if (!hit) return 0;
     if (!tree || !ray) {
-        hit->t = hit->u = hit->v = 0.0f, hit->triangle = KDRT_INVALID_ID;
+        kdrt__miss(hit);
         return 0;
     }
-    return kdrt__traverse(tree, ray, query, hit, 0, NULL, stats);
+    return kdrt__traverse(tree, ray, NULL, hit, 0, NULL, stats);
 }
 
 KDRT_API int kdrt_intersect(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit)
 {
-    return kdrt__intersect(tree, ray, NULL, hit, NULL);
+    return kdrt__intersect(tree, ray, hit, NULL);
 }
 
 #ifdef KDRT_TRAVERSAL_STATS
 KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
                                     kdrt_traversal_stats *stats)
 {
-    return kdrt__intersect(tree, ray, NULL, hit, stats);
+    return kdrt__intersect(tree, ray, hit, stats);
 }
 #endif
 
@@ -3403,54 +3661,77 @@ KDRT_API kdrt_query kdrt_default_query(void)
 {
     kdrt_query q;
     memset(&q, 0, sizeof q);
+    q.mask = 0xFFFFFFFFu;
     return q;
+}
+
+/* A walk of one tree with or without rules: the plain walks keep their constant arguments. Used
+   by the _query forms and by scenes, for each tree they walk. */
+static int kdrt__walk(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt__rules *rules,
+                      kdrt_hit *best, int any_hit, kdrt__hit_list *list)
+{
+    if (rules) return kdrt__traverse(tree, ray, rules, best, any_hit, list, NULL);
+    return any_hit ? kdrt__traverse(tree, ray, NULL, best, 1, NULL, NULL)
+                   : kdrt__traverse(tree, ray, NULL, best, 0, NULL, NULL);
 }
 
 KDRT_API int kdrt_intersect_query(const kdrt_tree *tree, const kdrt_ray *ray,
                                   const kdrt_query *query, kdrt_hit *hit)
 {
-    return kdrt__intersect(tree, ray, query, hit, NULL);
+    kdrt__rules storage;
+    if (!hit) return 0;
+    kdrt__miss(hit);
+    if (!tree || !ray || (query && query->mask == 0)) return 0;
+    return kdrt__walk(tree, ray, kdrt__rules_for(query, ray, tree, KDRT_INVALID_ID, 0, 0, &storage),
+                      hit, 0, NULL);
 }
 
 KDRT_API int kdrt_occluded_query(const kdrt_tree *tree, const kdrt_ray *ray,
                                  const kdrt_query *query)
 {
+    kdrt__rules storage;
     kdrt_hit hit;
-    return tree && ray && kdrt__traverse(tree, ray, query, &hit, 1, NULL, NULL);
+    if (!tree || !ray || (query && query->mask == 0)) return 0;
+    return kdrt__walk(tree, ray, kdrt__rules_for(query, ray, tree, KDRT_INVALID_ID, 0, 0, &storage),
+                      &hit, 1, NULL);
 }
 
 KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
                                    const kdrt_query *query, kdrt_hit *hits, uint32_t capacity)
 {
     kdrt__hit_list list;
+    kdrt__rules storage;
     kdrt_hit bound;
-    if (!tree || !ray || !hits || capacity == 0) return 0;
+    if (!tree || !ray || !hits || capacity == 0 || (query && query->mask == 0)) return 0;
     list.hits = hits, list.count = 0, list.capacity = capacity;
-    kdrt__traverse(tree, ray, query, &bound, 0, &list, NULL);
+    kdrt__traverse(tree, ray, kdrt__rules_for(query, ray, tree, KDRT_INVALID_ID, 0, 1, &storage),
+                   &bound, 0, &list, NULL);
     return list.count;
 }
 
 /* ==== secondary rays ==== */
 
-KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
-                              float normal[3])
+/* The point at barycentrics (u, v) of the triangle with corners c, each first carried into the
+   world by to_world ([R | t], 3x4 row-major) unless it is NULL, and its unit geometric normal
+   (p1 - p0) x (p2 - p0) of the corners as placed, so that a mirror turns it with the winding.
+   Either output may be NULL. */
+static void kdrt__surface(float c[3][3], const double *to_world, float u, float v, float point[3],
+                          float normal[3])
 {
-    float p[3][3];
-    double e1[3], e2[3], n[3], length;
+    double p[3][3], e1[3], e2[3], n[3], length;
     int a, k;
-    /* From the caller's buffers, which the tree borrows anyway: hit->triangle is the caller's
-       index, and the tree's copy is in leaf order, so finding a triangle there would take an
-       inverse map (4 more bytes a triangle) for a query made once per hit, not once per test. */
-    if (!tree || !hit || hit->triangle >= tree->mesh.triangle_count) return 0;
-    /* A hand-made hit may name a triangle the build skipped: check it as the build did. */
-    if (kdrt__check_triangle(&tree->mesh, hit->triangle, p) != KDRT_SUCCESS) return 0;
+    for (k = 0; k < 3; ++k)
+        for (a = 0; a < 3; ++a)
+            p[k][a] = to_world ? to_world[4 * a] * c[k][0] + to_world[4 * a + 1] * c[k][1] +
+                                     to_world[4 * a + 2] * c[k][2] + to_world[4 * a + 3]
+                               : c[k][a];
     for (a = 0; a < 3; ++a) {
         double x, lo = p[0][a], hi = p[0][a];
-        e1[a] = (double)p[1][a] - p[0][a], e2[a] = (double)p[2][a] - p[0][a];
+        e1[a] = p[1][a] - p[0][a], e2[a] = p[2][a] - p[0][a];
         /* p0 + u e1 + v e2 in double: exact enough that the float result is within an ulp. Kept
            within the corners: rounded barycentrics (u + v a hair over 1) must not take it out
            of the triangle's box, nor past the largest float when a corner lies there. */
-        x = p[0][a] + hit->u * e1[a] + hit->v * e2[a];
+        x = p[0][a] + u * e1[a] + v * e2[a];
         for (k = 1; k < 3; ++k)
             lo = p[k][a] < lo ? p[k][a] : lo, hi = p[k][a] > hi ? p[k][a] : hi;
         if (point) point[a] = (float)(x < lo ? lo : (x > hi ? hi : x));
@@ -3459,6 +3740,25 @@ KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float 
     length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (normal)
         for (a = 0; a < 3; ++a) normal[a] = length > 0.0 ? (float)(n[a] / length) : 0.0f;
+}
+
+/* The corners of triangle tri of mesh m, for a hit the caller hands back: 0 when the mesh has
+   no such triangle or the build could not have used it (a hand-made hit). */
+static int kdrt__hit_corners(const kdrt_triangles *m, uint32_t tri, float p[3][3])
+{
+    return tri < m->triangle_count && kdrt__check_triangle(m, tri, p) == KDRT_SUCCESS;
+}
+
+KDRT_API int kdrt_hit_surface(const kdrt_tree *tree, const kdrt_hit *hit, float point[3],
+                              float normal[3])
+{
+    float p[3][3];
+    /* From the caller's buffers, which the tree borrows anyway: hit->triangle is the caller's
+       index, and the tree's copy is in leaf order, so finding a triangle there would take an
+       inverse map (4 more bytes a triangle) for a query made once per hit, not once per test. */
+    if (!tree || !hit || !kdrt__hit_corners(&tree->meshes.parts[0].mesh, hit->triangle, p))
+        return 0;
+    kdrt__surface(p, NULL, hit->u, hit->v, point, normal);
     return 1;
 }
 
@@ -3497,21 +3797,675 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
     }
 }
 
-KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
-                            kdrt_ray *out)
+/* A ray leaving point (on a surface with this normal) in direction dir, for kdrt_spawn_ray and
+   kdrt_scene_spawn_ray. */
+static void kdrt__leave_surface(const float point[3], const float normal[3], const float dir[3],
+                                kdrt_ray *out)
 {
-    float point[3], normal[3];
     int a;
-    if (!out) return 0;
-    memset(out, 0, sizeof *out);
-    if (!dir || !kdrt_hit_surface(tree, hit, point, normal)) return 0; /* zero dir: misses */
     kdrt_offset_ray_origin(point, normal, dir, out->org);
     for (a = 0; a < 3; ++a) out->dir[a] = dir[a];
     out->tmin = 0.0f;
     out->tmax = INFINITY;
+}
+
+KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
+                            kdrt_ray *out)
+{
+    float point[3], normal[3];
+    if (!out) return 0;
+    memset(out, 0, sizeof *out);
+    if (!dir || !kdrt_hit_surface(tree, hit, point, normal)) return 0; /* zero dir: misses */
+    kdrt__leave_surface(point, normal, dir, out);
     return 1;
 }
 
+/* ==== scenes: meshes in one tree, instances under a top-level tree ==== */
+
+/* An instance as the queries use it: the transform and its inverse in double, and the world
+   box its tree occupies. */
+typedef struct kdrt__instance {
+    const kdrt_tree *tree;
+    double to_world[12];  /* [R | t], as kdrt_geometry.transform */
+    double to_object[9];  /* R^-1: object = R^-1 (world - t) */
+    kdrt_aabb box;        /* the tree's box carried into the world and widened; empty: no tree */
+    uint32_t id, mask;
+    int mirrored;         /* det R < 0: the world sees each triangle's other face */
+} kdrt__instance;
+
+/* The top-level kd-tree: nodes as a tree's, a leaf's u.first indexing refs (instances). */
+typedef struct kdrt__level {
+    kdrt__node *nodes;
+    uint32_t *refs;
+    uint32_t node_count, ref_count;
+    kdrt_aabb bounds;
+} kdrt__level;
+
+struct kdrt_scene {
+    kdrt_allocator allocator;
+    kdrt_geometry *entries; /* by ascending ID; an instance's transform the committed one */
+    uint32_t *slot;         /* [entry]: its index in parts (a mesh) or instances */
+    uint32_t entry_count;
+    kdrt__part *parts;      /* the meshes, as the mesh tree numbers them */
+    kdrt_tree *meshes;      /* one tree over every mesh; NULL when there is none */
+    kdrt__instance *instances; /* by ascending ID */
+    float *pending;         /* [12 i]: instance i's transform from the next commit */
+    uint32_t instance_count;
+    kdrt__level top;
+    kdrt_aabb bounds;
+};
+
+KDRT_API kdrt_geometry kdrt_mesh_geometry(uint32_t id, const kdrt_triangles *mesh)
+{
+    kdrt_geometry g;
+    memset(&g, 0, sizeof g);
+    g.type = KDRT_GEOMETRY_MESH;
+    g.id = id;
+    g.mask = 0xFFFFFFFFu;
+    if (mesh) g.mesh = *mesh;
+    g.transform[0] = g.transform[5] = g.transform[10] = 1.0f;
+    return g;
+}
+
+KDRT_API kdrt_geometry kdrt_instance_geometry(uint32_t id, const kdrt_tree *tree,
+                                              const float transform[12])
+{
+    kdrt_geometry g = kdrt_mesh_geometry(id, NULL);
+    g.type = KDRT_GEOMETRY_INSTANCE;
+    g.tree = tree;
+    if (transform) memcpy(g.transform, transform, sizeof g.transform);
+    return g;
+}
+
+/* x rounded to a float no greater (up: no smaller). */
+static float kdrt__float_down(double x)
+{
+    float f = (float)x;
+    return (double)f > x ? kdrt__next_down(f) : f;
+}
+static float kdrt__float_up(double x)
+{
+    float f = (float)x;
+    return (double)f < x ? kdrt__next_up(f) : f;
+}
+
+/* An instance of tree placed by transform: KDRT_ERROR_INVALID_TRANSFORM for a NaN or infinite
+   entry, or a matrix so near singular that its inverse means nothing: |det R| under 2^-40 of the
+   product of its rows' lengths (1 for a rotation, whatever the scales). */
+static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float transform[12],
+                                        kdrt__instance *in)
+{
+    const double *m = in->to_world;
+    double det, rows = 1.0, *inv = in->to_object;
+    int i, k;
+    for (i = 0; i < 12; ++i) {
+        if (!kdrt__finite(transform[i])) return KDRT_ERROR_INVALID_TRANSFORM;
+        in->to_world[i] = transform[i];
+    }
+    /* The adjugate of R over its determinant; R's rows are m[0..2], m[4..6], m[8..10]. */
+    inv[0] = m[5] * m[10] - m[6] * m[9], inv[1] = m[2] * m[9] - m[1] * m[10];
+    inv[2] = m[1] * m[6] - m[2] * m[5], inv[3] = m[6] * m[8] - m[4] * m[10];
+    inv[4] = m[0] * m[10] - m[2] * m[8], inv[5] = m[2] * m[4] - m[0] * m[6];
+    inv[6] = m[4] * m[9] - m[5] * m[8], inv[7] = m[1] * m[8] - m[0] * m[9];
+    inv[8] = m[0] * m[5] - m[1] * m[4];
+    det = m[0] * inv[0] + m[1] * inv[3] + m[2] * inv[6];
+    for (i = 0; i < 3; ++i)
+        rows *= sqrt(m[4 * i] * m[4 * i] + m[4 * i + 1] * m[4 * i + 1] + m[4 * i + 2] * m[4 * i + 2]);
+    if (!(fabs(det) >= 9.094947017729282e-13 * rows /* 2^-40 */) || det - det != 0.0) return KDRT_ERROR_INVALID_TRANSFORM;
+    for (i = 0; i < 9; ++i) inv[i] /= det;
+    in->tree = tree;
+    in->mirrored = det < 0.0;
+    in->box = kdrt_aabb_empty();
+    if (tree->bounds.min[0] <= tree->bounds.max[0]) {
+        /* The 8 corners of the tree's box in the world, in double, then widened by 2^-20 of the
+           box's extent and position on each axis: a ray's trip into the tree's space is rounded,
+           and the top level must not cull an instance that ray would hit. */
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (k = 0; k < 8; ++k) {
+            const double c[3] = {(k & 1) ? tree->bounds.max[0] : tree->bounds.min[0],
+                                 (k & 2) ? tree->bounds.max[1] : tree->bounds.min[1],
+                                 (k & 4) ? tree->bounds.max[2] : tree->bounds.min[2]};
+            for (i = 0; i < 3; ++i) {
+                double x = m[4 * i] * c[0] + m[4 * i + 1] * c[1] + m[4 * i + 2] * c[2] + m[4 * i + 3];
+                lo[i] = x < lo[i] ? x : lo[i], hi[i] = x > hi[i] ? x : hi[i];
+            }
+        }
+        for (i = 0; i < 3; ++i) {
+            double pad = 9.5367431640625e-7 /* 2^-20 */ * (hi[i] - lo[i] + (fabs(lo[i]) > fabs(hi[i]) ? fabs(lo[i]) : fabs(hi[i])));
+            in->box.min[i] = kdrt__float_down(lo[i] - pad);
+            in->box.max[i] = kdrt__float_up(hi[i] + pad);
+        }
+    }
+    return KDRT_SUCCESS;
+}
+
+/* ---- the top-level tree over the instances' boxes ---- */
+
+/* Its SAH costs: a node step against an instance's (a ray carried into it and a walk of its
+   tree, a few dozen node steps at least). */
+#define KDRT__LEVEL_TRAVERSAL_COST 1.0
+#define KDRT__LEVEL_INSTANCE_COST 8.0
+/* References beyond one an instance the level may make by splitting straddling boxes. */
+#define KDRT__LEVEL_EXTRA_REFS 3u
+
+typedef struct kdrt__level_builder {
+    const kdrt_allocator *allocator;
+    const kdrt__instance *instances;
+    kdrt__level level;
+    uint32_t node_capacity, ref_capacity;
+    uint32_t extra_refs, max_depth; /* references it may still add; depth limit */
+    float *keys;                    /* scratch: the sorted box faces of a node, 2 per instance */
+} kdrt__level_builder;
+
+static int kdrt__float_order(const void *a, const void *b)
+{
+    const float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* The best plane of the node [lo, hi] over items (n > 1) by the SAH, each box face inside the
+   node a candidate: its axis (3: no plane beats a leaf) and position. */
+static uint32_t kdrt__level_plane(kdrt__level_builder *b, const uint32_t *items, uint32_t n,
+                                  const float lo[3], const float hi[3], float *split)
+{
+    const double area = kdrt__half_area(lo, hi);
+    double best = KDRT__LEVEL_INSTANCE_COST * n;
+    uint32_t axis, best_axis = 3, i;
+    float *mins = b->keys, *maxs = b->keys + n;
+    if (!(area > 0.0)) return 3;
+    for (axis = 0; axis < 3; ++axis) {
+        uint32_t below = 0, ended = 0; /* boxes starting before the plane; ending at or before it */
+        if (!(hi[axis] > lo[axis])) continue;
+        for (i = 0; i < n; ++i) {
+            mins[i] = b->instances[items[i]].box.min[axis];
+            maxs[i] = b->instances[items[i]].box.max[axis];
+        }
+        qsort(mins, n, sizeof *mins, kdrt__float_order);
+        qsort(maxs, n, sizeof *maxs, kdrt__float_order);
+        while (below < n || ended < n) {
+            /* The next face in order; every box starting before it is below, every box ending
+               after it above. */
+            const float p = ended == n || (below < n && mins[below] < maxs[ended]) ? mins[below]
+                                                                                  : maxs[ended];
+            float clo[3], chi[3];
+            double cost;
+            while (below < n && mins[below] < p) ++below;
+            while (ended < n && maxs[ended] <= p) ++ended;
+            if (!(p > lo[axis] && p < hi[axis])) {
+                if (below < n && mins[below] == p) ++below; /* step past p */
+                continue;
+            }
+            memcpy(clo, lo, sizeof clo), memcpy(chi, hi, sizeof chi);
+            chi[axis] = p;
+            cost = kdrt__half_area(lo, chi) * below;
+            clo[axis] = p, chi[axis] = hi[axis];
+            cost += kdrt__half_area(clo, hi) * (n - ended);
+            cost = KDRT__LEVEL_TRAVERSAL_COST + KDRT__LEVEL_INSTANCE_COST * cost / area;
+            if (cost < best && below + (n - ended) <= n + b->extra_refs)
+                best = cost, best_axis = axis, *split = p;
+            if (below < n && mins[below] == p) ++below;
+        }
+    }
+    return best_axis;
+}
+
+/* The subtree of node [lo, hi] over items, depth first from node index level.node_count. */
+static kdrt_result kdrt__level_node(kdrt__level_builder *b, const uint32_t *items, uint32_t n,
+                                    const float lo[3], const float hi[3], uint32_t depth)
+{
+    const uint32_t node = b->level.node_count;
+    uint32_t axis = 3, i, nb = 0, na = 0, *sides;
+    float split = 0.0f, clo[3], chi[3];
+    kdrt_result r = kdrt__reserve(b->allocator, (void **)&b->level.nodes, &b->node_capacity,
+                                  node + 1u, sizeof(kdrt__node));
+    if (r != KDRT_SUCCESS) return r;
+    if (node >= KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
+    b->level.node_count += 1;
+    if (n > 1 && depth < b->max_depth) axis = kdrt__level_plane(b, items, n, lo, hi, &split);
+    if (axis == 3) {
+        r = kdrt__reserve(b->allocator, (void **)&b->level.refs, &b->ref_capacity,
+                          b->level.ref_count + n, sizeof(uint32_t));
+        if (r != KDRT_SUCCESS) return r;
+        if (n) memcpy(b->level.refs + b->level.ref_count, items, (size_t)n * sizeof(uint32_t));
+        b->level.nodes[node] = kdrt__node_leaf(b->level.ref_count, n);
+        b->level.ref_count += n;
+        return KDRT_SUCCESS;
+    }
+    /* Below: boxes starting before the plane, and flat ones lying in it; above: boxes ending
+       after it. */
+    sides = (uint32_t *)kdrt__alloc(b->allocator, 2 * (size_t)n * sizeof(uint32_t));
+    if (!sides) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n; ++i) {
+        const kdrt_aabb *box = &b->instances[items[i]].box;
+        if (box->min[axis] < split || box->max[axis] <= split) sides[nb++] = items[i];
+        if (box->max[axis] > split) sides[n + na++] = items[i];
+    }
+    /* Flat boxes in the plane, which the sweep counted above, make at most this many more. */
+    b->extra_refs = nb + na - n < b->extra_refs ? b->extra_refs - (nb + na - n) : 0u;
+    memcpy(clo, lo, sizeof clo), memcpy(chi, hi, sizeof chi);
+    chi[axis] = split;
+    r = kdrt__level_node(b, sides, nb, lo, chi, depth + 1u);
+    if (r == KDRT_SUCCESS) {
+        const uint32_t above = b->level.node_count;
+        clo[axis] = split;
+        r = kdrt__level_node(b, sides + n, na, clo, hi, depth + 1u);
+        if (r == KDRT_SUCCESS) b->level.nodes[node] = kdrt__node_inner(axis, split, above);
+    }
+    kdrt__free(b->allocator, sides);
+    return r;
+}
+
+/* The top level over n instances (those with an empty box left out); *out stays untouched on
+   failure. */
+static kdrt_result kdrt__build_level(const kdrt_allocator *a, const kdrt__instance *instances,
+                                     uint32_t n, kdrt__level *out)
+{
+    kdrt__level_builder b;
+    uint32_t *items, i, count = 0;
+    kdrt_result r;
+    memset(&b, 0, sizeof b);
+    b.allocator = a, b.instances = instances;
+    b.level.bounds = kdrt_aabb_empty();
+    items = (uint32_t *)kdrt__alloc(a, (size_t)n * sizeof(uint32_t));
+    b.keys = (float *)kdrt__alloc(a, 2 * (size_t)n * sizeof(float));
+    if (!items || !b.keys) {
+        kdrt__free(a, items);
+        kdrt__free(a, b.keys);
+        return KDRT_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < n; ++i)
+        if (instances[i].box.min[0] <= instances[i].box.max[0]) {
+            items[count++] = i;
+            b.level.bounds = kdrt_aabb_union(b.level.bounds, instances[i].box);
+        }
+    b.extra_refs = KDRT__LEVEL_EXTRA_REFS * count;
+    b.max_depth = kdrt__default_depth(count);
+    if (b.max_depth > KDRT_MAX_DEPTH) b.max_depth = KDRT_MAX_DEPTH;
+    if (count == 0) r = KDRT_SUCCESS; /* no nodes: every ray misses the instances */
+    else r = kdrt__level_node(&b, items, count, b.level.bounds.min, b.level.bounds.max, 0);
+    kdrt__free(a, items);
+    kdrt__free(a, b.keys);
+    if (r != KDRT_SUCCESS) {
+        kdrt__free(a, b.level.nodes);
+        kdrt__free(a, b.level.refs);
+        return r;
+    }
+    *out = b.level;
+    return KDRT_SUCCESS;
+}
+
+/* ---- building, moving, freeing ---- */
+
+static int kdrt__geometry_order(const void *a, const void *b)
+{
+    const uint32_t x = ((const kdrt_geometry *)a)->id, y = ((const kdrt_geometry *)b)->id;
+    return (x > y) - (x < y);
+}
+
+/* The entry with this ID, or NULL: a binary search of the sorted entries. */
+static const kdrt_geometry *kdrt__find_entry(const kdrt_scene *scene, uint32_t id)
+{
+    uint32_t lo = 0, hi = scene->entry_count;
+    while (lo < hi) {
+        const uint32_t mid = lo + (hi - lo) / 2u;
+        if (scene->entries[mid].id < id) lo = mid + 1u;
+        else hi = mid;
+    }
+    return lo < scene->entry_count && scene->entries[lo].id == id ? &scene->entries[lo] : NULL;
+}
+
+/* The instance with this ID, or NULL. */
+static const kdrt__instance *kdrt__find_instance(const kdrt_scene *scene, uint32_t id)
+{
+    const kdrt_geometry *e = kdrt__find_entry(scene, id);
+    if (!e || e->type != KDRT_GEOMETRY_INSTANCE) return NULL;
+    return &scene->instances[scene->slot[e - scene->entries]];
+}
+
+KDRT_API void kdrt_scene_free(kdrt_scene *scene)
+{
+    kdrt_allocator a;
+    if (!scene) return;
+    a = scene->allocator;
+    kdrt_tree_free(scene->meshes);
+    kdrt__free(&a, scene->top.nodes);
+    kdrt__free(&a, scene->top.refs);
+    kdrt__free(&a, scene->entries);
+    kdrt__free(&a, scene->slot);
+    kdrt__free(&a, scene->parts);
+    kdrt__free(&a, scene->instances);
+    kdrt__free(&a, scene->pending);
+    kdrt__free(&a, scene);
+}
+
+/* Checks the sorted entries and lays out the meshes' parts and the instances; report names the
+   geometry at fault. */
+static kdrt_result kdrt__scene_entries(kdrt_scene *sc, kdrt_build_report *report)
+{
+    uint32_t i, meshes = 0, instances = 0, triangles = 0;
+    for (i = 0; i < sc->entry_count; ++i) {
+        const kdrt_geometry *e = &sc->entries[i];
+        kdrt_result r = KDRT_SUCCESS;
+        if (report) report->invalid_geometry = e->id;
+        if (e->id == KDRT_INVALID_ID || (i > 0 && e->id == sc->entries[i - 1].id))
+            return KDRT_ERROR_INVALID_GEOMETRY_ID;
+        if (e->type == KDRT_GEOMETRY_MESH) {
+            kdrt__part *part = &sc->parts[meshes];
+            r = kdrt__check_view(&e->mesh, &part->mesh);
+            if (r == KDRT_SUCCESS && part->mesh.triangle_count > KDRT_MAX_TRIANGLES - triangles)
+                r = KDRT_ERROR_SIZE_OVERFLOW;
+            if (r != KDRT_SUCCESS) return r;
+            part->first = triangles, part->id = e->id, part->mask = e->mask;
+            triangles += part->mesh.triangle_count;
+            sc->slot[i] = meshes++;
+        } else if (e->type == KDRT_GEOMETRY_INSTANCE) {
+            kdrt__instance *in = &sc->instances[instances];
+            if (!e->tree) return KDRT_ERROR_NULL_ARGUMENT;
+            r = kdrt__place_instance(e->tree, e->transform, in);
+            if (r != KDRT_SUCCESS) return r;
+            in->id = e->id, in->mask = e->mask;
+            memcpy(&sc->pending[12 * (size_t)instances], e->transform, sizeof e->transform);
+            sc->slot[i] = instances++;
+        } else {
+            return KDRT_ERROR_INVALID_OPTION;
+        }
+    }
+    if (report) report->invalid_geometry = KDRT_INVALID_ID;
+    sc->instance_count = instances;
+    return KDRT_SUCCESS;
+}
+
+/* The scene's box: its meshes' and its instances'. */
+static void kdrt__scene_bounds(kdrt_scene *sc)
+{
+    sc->bounds = sc->meshes ? sc->meshes->bounds : kdrt_aabb_empty();
+    sc->bounds = kdrt_aabb_union(sc->bounds, sc->top.bounds);
+}
+
+KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t count,
+                                      const kdrt_build_options *options, kdrt_scene **out_scene,
+                                      kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt_scene *sc;
+    uint32_t i, meshes = 0;
+    kdrt_result r;
+
+    kdrt__report_init(report);
+    if (!out_scene) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_scene = NULL;
+    if (!geometries && count) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__check_options(&opt);
+    if (r != KDRT_SUCCESS) return r;
+    sc = (kdrt_scene *)kdrt__alloc(&opt.allocator, sizeof *sc);
+    if (!sc) return KDRT_ERROR_OUT_OF_MEMORY;
+    memset(sc, 0, sizeof *sc);
+    sc->allocator = opt.allocator;
+    sc->top.bounds = kdrt_aabb_empty();
+    for (i = 0; i < count; ++i) meshes += geometries[i].type == KDRT_GEOMETRY_MESH;
+    sc->entries = (kdrt_geometry *)kdrt__alloc(&opt.allocator, (size_t)count * sizeof *sc->entries);
+    sc->slot = (uint32_t *)kdrt__alloc(&opt.allocator, (size_t)count * sizeof *sc->slot);
+    sc->parts = (kdrt__part *)kdrt__alloc(&opt.allocator, (size_t)meshes * sizeof *sc->parts);
+    sc->instances = (kdrt__instance *)kdrt__alloc(&opt.allocator,
+                                                 (size_t)(count - meshes) * sizeof *sc->instances);
+    sc->pending = (float *)kdrt__alloc(&opt.allocator, 12 * (size_t)(count - meshes) * sizeof(float));
+    if (!sc->entries || !sc->slot || !sc->parts || !sc->instances || !sc->pending) {
+        kdrt_scene_free(sc);
+        return KDRT_ERROR_OUT_OF_MEMORY;
+    }
+    if (count) memcpy(sc->entries, geometries, (size_t)count * sizeof *sc->entries);
+    sc->entry_count = count;
+    /* In ID order, so that the mesh tree's triangle numbers order hits as the tie rule does. */
+    qsort(sc->entries, count, sizeof *sc->entries, kdrt__geometry_order);
+    r = kdrt__scene_entries(sc, report);
+    if (r == KDRT_SUCCESS && meshes > 0) {
+        kdrt__meshes m;
+        m.parts = sc->parts, m.count = meshes;
+        m.triangles = sc->parts[meshes - 1].first + sc->parts[meshes - 1].mesh.triangle_count;
+        sc->meshes = kdrt__tree_new(&opt, &m);
+        if (!sc->meshes) r = KDRT_ERROR_OUT_OF_MEMORY;
+        else r = kdrt__build_tree(sc->meshes, &opt, report); /* frees it on failure */
+        if (r != KDRT_SUCCESS) {
+            sc->meshes = NULL;
+            if (report && report->invalid_triangle != KDRT_INVALID_ID) {
+                /* The tree numbers triangles across the meshes: name the mesh and its own. */
+                const kdrt__part *part = kdrt__part_of(&m, report->invalid_triangle);
+                report->invalid_triangle -= part->first;
+                report->invalid_geometry = part->id;
+            }
+        }
+    }
+    if (r == KDRT_SUCCESS) r = kdrt__build_level(&sc->allocator, sc->instances, sc->instance_count,
+                                                 &sc->top);
+    if (r != KDRT_SUCCESS) {
+        kdrt_scene_free(sc);
+        return r;
+    }
+    kdrt__scene_bounds(sc);
+    *out_scene = sc;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_set_transform(kdrt_scene *scene, uint32_t id,
+                                              const float transform[12])
+{
+    const kdrt__instance *in;
+    kdrt__instance check;
+    kdrt_result r;
+    if (!scene || !transform) return KDRT_ERROR_NULL_ARGUMENT;
+    in = kdrt__find_instance(scene, id);
+    if (!in) return KDRT_ERROR_INVALID_GEOMETRY_ID;
+    r = kdrt__place_instance(in->tree, transform, &check);
+    if (r != KDRT_SUCCESS) return r;
+    memcpy(&scene->pending[12 * (size_t)(in - scene->instances)], transform, 12 * sizeof(float));
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_commit(kdrt_scene *scene)
+{
+    const size_t n = scene ? scene->instance_count : 0u;
+    kdrt__instance *next;
+    kdrt__level level;
+    uint32_t i;
+    kdrt_result r;
+    if (!scene) return KDRT_ERROR_NULL_ARGUMENT;
+    /* Built aside and swapped in, so that a failure leaves the scene as it was. */
+    next = (kdrt__instance *)kdrt__alloc(&scene->allocator, n * sizeof *next);
+    if (!next) return KDRT_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n; ++i) {
+        next[i] = scene->instances[i];
+        r = kdrt__place_instance(next[i].tree, &scene->pending[12 * (size_t)i], &next[i]);
+        KDRT_ASSERT(r == KDRT_SUCCESS); /* checked by kdrt_scene_set_transform */
+        (void)r;
+    }
+    r = kdrt__build_level(&scene->allocator, next, (uint32_t)n, &level);
+    if (r != KDRT_SUCCESS) {
+        kdrt__free(&scene->allocator, next);
+        return r;
+    }
+    kdrt__free(&scene->allocator, scene->instances);
+    kdrt__free(&scene->allocator, scene->top.nodes);
+    kdrt__free(&scene->allocator, scene->top.refs);
+    scene->instances = next;
+    scene->top = level;
+    for (i = 0; i < scene->entry_count; ++i)
+        if (scene->entries[i].type == KDRT_GEOMETRY_INSTANCE)
+            memcpy(scene->entries[i].transform, &scene->pending[12 * (size_t)scene->slot[i]],
+                   12 * sizeof(float));
+    kdrt__scene_bounds(scene);
+    return KDRT_SUCCESS;
+}
+
+KDRT_API const kdrt_geometry *kdrt_scene_geometry(const kdrt_scene *scene, uint32_t id)
+{
+    return scene ? kdrt__find_entry(scene, id) : NULL;
+}
+
+KDRT_API kdrt_aabb kdrt_scene_bounds(const kdrt_scene *scene)
+{
+    return scene ? scene->bounds : kdrt_aabb_empty();
+}
+
+/* ---- queries ---- */
+
+/* The world ray in the instance's space, evaluated in double and rounded once; its range is
+   tmin to tmax (t is the same parameter in both spaces: dir is not renormalised). */
+static void kdrt__object_ray(const kdrt__instance *in, const kdrt_ray *ray, float tmax,
+                             kdrt_ray *out)
+{
+    double o[3];
+    int i;
+    for (i = 0; i < 3; ++i) o[i] = (double)ray->org[i] - in->to_world[4 * i + 3];
+    for (i = 0; i < 3; ++i) {
+        const double *row = &in->to_object[3 * i];
+        out->org[i] = (float)(row[0] * o[0] + row[1] * o[1] + row[2] * o[2]);
+        out->dir[i] = (float)(row[0] * ray->dir[0] + row[1] * ray->dir[1] + row[2] * ray->dir[2]);
+    }
+    out->tmin = ray->tmin;
+    out->tmax = tmax;
+}
+
+/* The walk of the top level: each instance the ray's range reaches and its mask lets through is
+   walked in its own space. Nearest hit: *best holds the hit so far (or a miss whose t is the
+   range's end) and takes nearer ones; any_hit: 1 on the first; list: its hits go there. */
+static int kdrt__walk_instances(const kdrt_scene *sc, const kdrt_ray *ray, const kdrt_query *query,
+                                kdrt_hit *best, int any_hit, kdrt__hit_list *list)
+{
+    kdrt__todo stack[KDRT_MAX_DEPTH];
+    uint32_t sp = 0, node = 0, tested[8], i;
+    const uint32_t mask = query ? query->mask : 0xFFFFFFFFu;
+    kdrt__ray_setup s;
+    float t0, t1;
+    int found = 0;
+    if (sc->top.node_count == 0 || !kdrt__setup_ray(ray, &s) ||
+        !kdrt__clip_to_box(&sc->top.bounds, &s, &t0, &t1))
+        return 0;
+    memset(tested, 0xFF, sizeof tested);
+    for (;;) {
+        const kdrt__node *n = &sc->top.nodes[node];
+        if (!kdrt__node_is_leaf(n)) {
+            node = kdrt__descend(n, node, &s, &t0, &t1, stack, &sp);
+            continue;
+        }
+        for (i = 0; i < kdrt__node_count(n); ++i) {
+            const uint32_t index = sc->top.refs[n->u.first + i];
+            const kdrt__instance *in = &sc->instances[index];
+            kdrt__rules storage;
+            const kdrt__rules *rules;
+            kdrt_ray object;
+            kdrt_hit h;
+            /* An instance in several leaves is walked once (a second walk repeats the first). */
+            if (tested[index & 7u] == index || !(in->mask & mask)) continue;
+            tested[index & 7u] = index;
+            rules = kdrt__rules_for(query, ray, in->tree, in->id, in->mirrored, list != NULL,
+                                    &storage);
+            kdrt__object_ray(in, ray, best->t, &object);
+            if (!kdrt__walk(in->tree, &object, rules, &h, any_hit, list)) {
+                if (list && list->count == list->capacity)
+                    best->t = list->hits[list->count - 1u].t; /* the list's bound */
+                continue;
+            }
+            if (any_hit) return 1;
+            h.geometry = h.instance = in->id;
+            if (best->triangle == KDRT_INVALID_ID || kdrt__hit_before(&h, best)) *best = h, found = 1;
+        }
+        do {
+            if (sp == 0) return found;
+            --sp;
+            node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
+        } while (t0 > best->t);
+    }
+}
+
+/* A scene query: the meshes' tree, then the instances. best as kdrt__walk_instances's. */
+static int kdrt__scene_query(const kdrt_scene *sc, const kdrt_ray *ray, const kdrt_query *query,
+                             kdrt_hit *best, int any_hit, kdrt__hit_list *list)
+{
+    int found = 0;
+    kdrt__miss(best);
+    best->t = ray->tmax;
+    if (query && query->mask == 0) return 0;
+    if (sc->meshes) {
+        kdrt__rules storage;
+        const kdrt__rules *rules =
+            kdrt__rules_for(query, ray, sc->meshes, KDRT_INVALID_ID, 0, list != NULL, &storage);
+        kdrt_hit h;
+        if (kdrt__walk(sc->meshes, ray, rules, &h, any_hit, list)) {
+            const kdrt__part *part = kdrt__part_of(&sc->meshes->meshes, h.triangle);
+            if (any_hit) return 1;
+            h.triangle -= part->first, h.geometry = part->id;
+            *best = h, found = 1;
+        } else if (list && list->count == list->capacity) {
+            best->t = list->hits[list->count - 1u].t;
+        }
+    }
+    found |= kdrt__walk_instances(sc, ray, query, best, any_hit, list);
+    if (!found && !list) kdrt__miss(best);
+    return found;
+}
+
+KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
+                                  const kdrt_query *query, kdrt_hit *hit)
+{
+    if (!hit) return 0;
+    if (!scene || !ray) {
+        kdrt__miss(hit);
+        return 0;
+    }
+    return kdrt__scene_query(scene, ray, query, hit, 0, NULL);
+}
+
+KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
+                                 const kdrt_query *query)
+{
+    kdrt_hit hit;
+    return scene && ray && kdrt__scene_query(scene, ray, query, &hit, 1, NULL);
+}
+
+KDRT_API uint32_t kdrt_scene_intersect_k(const kdrt_scene *scene, const kdrt_ray *ray,
+                                         const kdrt_query *query, kdrt_hit *hits,
+                                         uint32_t capacity)
+{
+    kdrt__hit_list list;
+    kdrt_hit bound;
+    if (!scene || !ray || !hits || capacity == 0) return 0;
+    list.hits = hits, list.count = 0, list.capacity = capacity;
+    kdrt__scene_query(scene, ray, query, &bound, 0, &list);
+    return list.count;
+}
+
+KDRT_API int kdrt_scene_hit_surface(const kdrt_scene *scene, const kdrt_hit *hit, float point[3],
+                                    float normal[3])
+{
+    const kdrt_geometry *e;
+    float p[3][3];
+    if (!scene || !hit) return 0;
+    if (hit->instance != KDRT_INVALID_ID) {
+        const kdrt__instance *in = kdrt__find_instance(scene, hit->instance);
+        if (!in || hit->geometry != hit->instance ||
+            !kdrt__hit_corners(&in->tree->meshes.parts[0].mesh, hit->triangle, p))
+            return 0;
+        kdrt__surface(p, in->to_world, hit->u, hit->v, point, normal);
+        return 1;
+    }
+    e = kdrt__find_entry(scene, hit->geometry);
+    if (!e || e->type != KDRT_GEOMETRY_MESH ||
+        !kdrt__hit_corners(&scene->parts[scene->slot[e - scene->entries]].mesh, hit->triangle, p))
+        return 0;
+    kdrt__surface(p, NULL, hit->u, hit->v, point, normal);
+    return 1;
+}
+
+KDRT_API int kdrt_scene_spawn_ray(const kdrt_scene *scene, const kdrt_hit *hit, const float dir[3],
+                                  kdrt_ray *out)
+{
+    float point[3], normal[3];
+    if (!out) return 0;
+    memset(out, 0, sizeof *out);
+    if (!dir || !kdrt_scene_hit_surface(scene, hit, point, normal)) return 0;
+    kdrt__leave_surface(point, normal, dir, out);
+    return 1;
+}
 
 /* ==== optics: reflection, refraction, Fresnel reflectance ==== */
 

@@ -896,14 +896,14 @@ TEST_CASE("errors: kdrt_hit_surface and kdrt_spawn_ray refuse a made-up hit on a
     const float dir[3] = {0, 0, 1};
     for (uint32_t skipped : {5u, 7u}) {
         INFO("triangle " << skipped);
-        kdrt_hit hit{1.0f, 0.25f, 0.25f, skipped};
+        kdrt_hit hit{1.0f, 0.25f, 0.25f, skipped, 0, KDRT_INVALID_ID};
         float point[3] = {-1, -1, -1}, normal[3] = {-1, -1, -1};
         CHECK(kdrt_hit_surface(tree.get(), &hit, point, normal) == 0);
         CHECK(point[0] == -1.0f);  // nothing written
         kdrt_ray ray;
         CHECK(kdrt_spawn_ray(tree.get(), &hit, dir, &ray) == 0);
     }
-    kdrt_hit good{1.0f, 0.25f, 0.25f, 0};
+    kdrt_hit good{1.0f, 0.25f, 0.25f, 0, 0, KDRT_INVALID_ID};
     float point[3];
     CHECK(kdrt_hit_surface(tree.get(), &good, point, nullptr) == 1);
 }
