@@ -595,8 +595,9 @@ typedef int (*kdrt_filter_fn)(void *user, const kdrt_ray *ray, const kdrt_hit *c
 
 typedef struct kdrt_query {
     uint32_t flags;        /* kdrt_query_flags; other bits are reserved, 0 */
-    uint32_t mask;         /* the ray's: a geometry counts only where (its mask & mask) != 0;
-                              kdrt_default_query() sets every bit, so 0 hits nothing */
+    uint32_t mask;         /* the ray's: a scene's geometry counts only where (its mask & mask)
+                              != 0 (SCENES); a tree's one mesh has every bit. kdrt_default_query()
+                              sets every bit; 0 hits nothing */
     kdrt_filter_fn filter; /* NULL: every hit that is not culled counts */
     void *user;            /* passed to filter */
 } kdrt_query;
@@ -671,8 +672,9 @@ typedef struct kdrt_geometry {
     const kdrt_tree *tree; /* KDRT_GEOMETRY_INSTANCE: borrowed, freed only after the scene */
     /* KDRT_GEOMETRY_INSTANCE: world from object, a 3x4 row-major matrix [R | t]: a point p of
        the tree goes to x_i = R_i0 p_0 + R_i1 p_1 + R_i2 p_2 + t_i, with transform[4 i + j] = R_ij
-       and transform[4 i + 3] = t_i. Finite and invertible; rotations, scales (uniform or not),
-       mirrors and shears are all fine. */
+       and transform[4 i + 3] = t_i. Finite and invertible (|det R| at least 2^-40 times the
+       product of its rows' lengths, which is 1 for any rotation and scale): rotations, scales
+       (uniform or not), mirrors and shears are all fine. */
     float transform[12];
 } kdrt_geometry;
 
@@ -3911,7 +3913,10 @@ static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float trans
     det = m[0] * inv[0] + m[1] * inv[3] + m[2] * inv[6];
     for (i = 0; i < 3; ++i)
         rows *= sqrt(m[4 * i] * m[4 * i] + m[4 * i + 1] * m[4 * i + 1] + m[4 * i + 2] * m[4 * i + 2]);
-    if (!(fabs(det) >= 9.094947017729282e-13 * rows /* 2^-40 */) || det - det != 0.0) return KDRT_ERROR_INVALID_TRANSFORM;
+    /* A zero row makes both sides 0: det must be nonzero as well. */
+    if (!(fabs(det) > 0.0 && fabs(det) >= 9.094947017729282e-13 /* 2^-40 */ * rows) ||
+        det - det != 0.0)
+        return KDRT_ERROR_INVALID_TRANSFORM;
     for (i = 0; i < 9; ++i) inv[i] /= det;
     in->tree = tree;
     in->mirrored = det < 0.0;

@@ -89,6 +89,34 @@ int main(void)
         }
     }
     check(refs == stats.triangle_refs, "inspection: references walked = kdrt_tree_stats.triangle_refs");
+    {
+        /* A scene: the square as mesh 4, and the tree mirrored in x (onto itself) and raised to
+           z = 1 as instance 9, so a ray down meets the instance first, on its back face (the
+           mirror turns the winding). */
+        const float mirror_up[12] = {-1, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 1};
+        const kdrt_ray off_diagonal = {{0.25f, 0.6f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+        kdrt_geometry geometries[2];
+        kdrt_scene *scene = NULL;
+        kdrt_query query = kdrt_default_query();
+        kdrt_hit hits[2];
+        float normal[3];
+        geometries[0] = kdrt_mesh_geometry(4, &mesh);
+        geometries[1] = kdrt_instance_geometry(9, tree, mirror_up);
+        check(kdrt_scene_build(geometries, 2, NULL, &scene, NULL) == KDRT_SUCCESS, "scene: build");
+        check(kdrt_scene_intersect(scene, &down, NULL, &hit) == 1 && hit.geometry == 9 && hit.instance == 9 &&
+                  hit.t > 0.999f && hit.t < 1.001f, "scene: the instance is hit first");
+        check(kdrt_scene_hit_surface(scene, &hit, NULL, normal) == 1 && normal[2] < -0.999f,
+              "scene: the mirrored instance faces down");
+        query.flags = KDRT_QUERY_CULL_BACK_FACES;
+        check(kdrt_scene_intersect(scene, &down, &query, &hit) == 1 && hit.geometry == 4 &&
+                  hit.instance == KDRT_INVALID_ID, "scene: back faces culled, the mesh is hit");
+        check(kdrt_scene_intersect_k(scene, &off_diagonal, NULL, hits, 2) == 2 && hits[0].geometry == 9 &&
+                  hits[1].geometry == 4, "scene: k nearest");
+        query = kdrt_default_query();
+        query.mask = 0;
+        check(kdrt_scene_occluded(scene, &down, &query) == 0, "scene: mask 0 sees nothing");
+        kdrt_scene_free(scene);
+    }
     check(kdrt_tree_node(tree, stats.nodes, &node) == KDRT_ERROR_INDEX_OUT_OF_RANGE, "inspection: node out of range");
     check(kdrt_tree_reference(tree, (uint32_t)stats.triangle_refs, &triangle) == KDRT_ERROR_INDEX_OUT_OF_RANGE,
           "inspection: reference out of range");
