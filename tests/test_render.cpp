@@ -204,7 +204,17 @@ TEST_CASE("render: PNG text chunks, and the kd-tree's boxes by depth", "[render]
     kr::Renderer renderer;
     REQUIRE(renderer.prepare(scene, 1, error));
     const std::vector<kr::TreeBox> roots = renderer.tree_boxes(0), deeper = renderer.tree_boxes(3);
-    CHECK(roots.size() == scene.meshes.size());
+    // The two meshes are one scene, so one tree: one root, whose box holds both.
+    REQUIRE(scene.meshes.size() == 2);
+    REQUIRE(roots.size() == 1);
+    size_t outside = 0;
+    for (const kr::MeshInstance &m : scene.meshes)
+        for (size_t i = 0; i < m.mesh.positions.size(); i += 3) {
+            const kr::Vec3 p{m.mesh.positions[i], m.mesh.positions[i + 1], m.mesh.positions[i + 2]};
+            const kr::Vec3 &lo = roots[0].lo, &hi = roots[0].hi;
+            outside += !(p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z);
+        }
+    CHECK(outside == 0);
     CHECK(deeper.size() > roots.size());
     for (const kr::TreeBox &b : deeper) {
         CHECK(b.depth <= 3);

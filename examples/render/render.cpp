@@ -1,10 +1,11 @@
 // kdrt-render's tracer: a pinhole camera, Phong direct lighting with hard or soft shadows,
-// mirrors, glass through kdrt's nested-media stack, one kdrt tree per mesh, tiles on threads.
+// mirrors, glass through kdrt's nested-media stack, the meshes in one kdrt scene (a mesh geometry
+// each, its ID the mesh's index), tiles on threads.
 //
 // Geometry is double precision except where kdrt works in floats: mesh hits, the optics functions
 // (kdrt_reflect, kdrt_refract, kdrt_fresnel_dielectric) and every secondary ray's origin, which
-// kdrt_spawn_ray (meshes) or kdrt_offset_ray_origin (spheres, quads: the same rule) moves off
-// the surface it leaves. No fixed epsilon anywhere.
+// kdrt_scene_spawn_ray (meshes) or kdrt_offset_ray_origin (spheres, quads: the same rule) moves
+// off the surface it leaves. No fixed epsilon anywhere.
 #include "kdrt.h"
 
 #include "render.hpp"
@@ -50,7 +51,7 @@ struct Hit {
     HitKind kind = HitKind::none;
     double t = kInf;
     int index = -1;          // sphere, quad, mesh or light index
-    kdrt_hit mesh_hit{};     // meshes
+    kdrt_hit mesh_hit{};     // meshes: a hit of the scene, mesh_hit.geometry == index
     Vec3 point;              // on the surface
     Vec3 normal;             // geometric, unit, as the object defines it (outwards for spheres)
     Vec3 shading_normal;     // interpolated on meshes when enabled, else the geometric one
@@ -92,9 +93,8 @@ double hit_parallelogram(Vec3 corner, Vec3 eu, Vec3 ev, const Ray &ray, double t
 }
 
 struct MeshData {
-    kdrt_tree *tree = nullptr;
     std::vector<Vec3> vertex_normals;  // area-weighted sums of face normals, unit
-    Vec3 box_lo, box_hi;               // for textured meshes' (u, v)
+    Vec3 box_lo, box_hi;               // of its triangles of nonzero area: textured meshes' (u, v)
 };
 
 // The camera's frame for a width x height image, checked once a render.
@@ -162,13 +162,19 @@ void for_each_tile(common::ThreadScheduler &scheduler, uint32_t W, uint32_t H, c
 
 struct Renderer::Impl {
     const Scene *scene = nullptr;
+    // Every mesh behind one query: geometry i is scene->meshes[i], so a hit's geometry is the
+    // mesh's index and equal t goes to the lower index. NULL when the scene has no meshes.
+    kdrt_scene *world = nullptr;
     std::vector<MeshData> meshes;
+    kdrt_build_options options{};  // the build's, for tree_boxes()
+    unsigned threads = 0;
     double build_seconds = 0;
 
     ~Impl() { clear(); }
     void clear()
     {
-        for (MeshData &m : meshes) kdrt_tree_free(m.tree);
+        kdrt_scene_free(world);
+        world = nullptr;
         meshes.clear();
     }
 
@@ -230,15 +236,15 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
                                                      : hit_parallelogram(l.corner, l.edge_u, l.edge_v, ray, hit.t, s, tt);
         if (t < hit.t) hit.t = t, hit.kind = HitKind::light, hit.index = int(i);
     }
-    kdrt_ray kray;
-    to_float(ray.origin, kray.org);
-    to_float(ray.dir, kray.dir);
-    kray.tmin = 0;
-    for (size_t i = 0; i < meshes.size(); ++i) {
+    if (world) {
+        kdrt_ray kray;
+        to_float(ray.origin, kray.org);
+        to_float(ray.dir, kray.dir);
+        kray.tmin = 0;
         kray.tmax = hit.t < kInf ? float(hit.t) : INFINITY;
         kdrt_hit kh;
-        if (kdrt_intersect(meshes[i].tree, &kray, &kh) && kh.t < hit.t)
-            hit.t = kh.t, hit.kind = HitKind::mesh, hit.index = int(i), hit.mesh_hit = kh;
+        if (kdrt_scene_intersect(world, &kray, nullptr, &kh) && kh.t < hit.t)
+            hit.t = kh.t, hit.kind = HitKind::mesh, hit.index = int(kh.geometry), hit.mesh_hit = kh;
     }
     switch (hit.kind) {
     case HitKind::none:
@@ -262,7 +268,7 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
     case HitKind::mesh: {
         const MeshData &md = meshes[size_t(hit.index)];
         float p[3], n[3];
-        kdrt_hit_surface(md.tree, &hit.mesh_hit, p, n);
+        kdrt_scene_hit_surface(world, &hit.mesh_hit, p, n);
         hit.point = to_vec(p), hit.normal = to_vec(n);
         // Meshes carry no texture coordinates: a textured mesh maps its box's x and z.
         const Vec3 size = md.box_hi - md.box_lo;
@@ -299,14 +305,13 @@ bool Renderer::Impl::occluded(Vec3 origin, Vec3 target) const
     double s, t;
     for (const Quad &q : scene->quads)
         if (hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, dist, s, t) < dist) return true;
+    if (!world) return false;
     kdrt_ray kray;
     to_float(origin, kray.org);
     to_float(d, kray.dir);  // target at t = 1 (kdrt_spawn_ray's rule for shadow rays)
     kray.tmin = 0;
     kray.tmax = 1;
-    for (const MeshData &md : meshes)
-        if (kdrt_occluded(md.tree, &kray)) return true;
-    return false;
+    return kdrt_scene_occluded(world, &kray, nullptr) != 0;
 }
 
 // The next ray from a hit: its origin moved off the surface towards the side dir leaves on.
@@ -318,7 +323,7 @@ Ray Renderer::Impl::spawn(const Hit &hit, Vec3 dir) const
     next.dir = normalize(dir);
     if (hit.kind == HitKind::mesh) {
         kdrt_ray kray;
-        kdrt_spawn_ray(meshes[size_t(hit.index)].tree, &hit.mesh_hit, fdir, &kray);
+        kdrt_scene_spawn_ray(world, &hit.mesh_hit, fdir, &kray);
         next.origin = to_vec(kray.org);
     } else {
         float p[3], n[3], out[3];
@@ -519,24 +524,18 @@ bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error,
         if (bad_material(m.material)) { error = "a mesh's material " + std::to_string(m.material) + " does not exist"; return false; }
     common::ThreadScheduler scheduler(threads);
     const auto start = std::chrono::steady_clock::now();
+    std::vector<kdrt_geometry> geometries;
     for (const MeshInstance &mi : scene.meshes) {
         impl_->meshes.emplace_back();
         MeshData &md = impl_->meshes.back();
         const common::Mesh &mesh = mi.mesh;
         const kdrt_triangles view = mesh.view();
-        kdrt_build_options options = kdrt_default_build_options();
-        options.max_leaf_size = scene.settings.max_leaf_size;
-        if (builder == TreeBuilder::median) options.builder = KDRT_BUILDER_MEDIAN;
-        options.scheduler = scheduler.hooks();
-        kdrt_build_report report;
-        const kdrt_result r = kdrt_tree_build(&view, &options, &md.tree, &report);
-        if (r != KDRT_SUCCESS) {
-            error = "cannot build the tree of mesh " + mi.source + ": " + kdrt_result_string(r);
-            return false;
-        }
+        geometries.push_back(kdrt_mesh_geometry(uint32_t(geometries.size()), &view));  // ID = mesh index
         // Vertex normals: the sum of the unnormalised face normals around a vertex weighs each
-        // face by its area.
+        // face by its area. The box holds the triangles of nonzero area, the ones kdrt keeps
+        // (its zero-area test: this cross product of the float corners, in double, exactly 0).
         md.vertex_normals.assign(mesh.vertex_count(), Vec3{});
+        Vec3 lo{kInf, kInf, kInf}, hi = -1.0 * lo;
         double p[3][3];
         for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
             mesh.corners(t, p);
@@ -546,11 +545,37 @@ bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error,
                 const uint32_t v = mesh.indices.empty() ? 3 * t + uint32_t(k) : mesh.indices[3 * size_t(t) + size_t(k)];
                 md.vertex_normals[v] = md.vertex_normals[v] + face;
             }
+            if (face.x == 0 && face.y == 0 && face.z == 0) continue;
+            for (const Vec3 &q : {a, b, c}) {
+                lo = Vec3{std::min(lo.x, q.x), std::min(lo.y, q.y), std::min(lo.z, q.z)};
+                hi = Vec3{std::max(hi.x, q.x), std::max(hi.y, q.y), std::max(hi.z, q.z)};
+            }
         }
         for (Vec3 &n : md.vertex_normals) n = normalize(n);
-        const kdrt_aabb box = kdrt_tree_bounds(md.tree);
-        md.box_lo = to_vec(box.min), md.box_hi = to_vec(box.max);
+        md.box_lo = lo, md.box_hi = hi;
     }
+    // One scene for every mesh: one kd-tree over all their triangles, built with the options
+    // one mesh's tree had.
+    kdrt_build_options &options = impl_->options;
+    options = kdrt_default_build_options();
+    options.max_leaf_size = scene.settings.max_leaf_size;
+    if (builder == TreeBuilder::median) options.builder = KDRT_BUILDER_MEDIAN;
+    options.scheduler = scheduler.hooks();
+    impl_->threads = threads;
+    if (!geometries.empty()) {
+        kdrt_build_report report;
+        const kdrt_result r = kdrt_scene_build(geometries.data(), uint32_t(geometries.size()), &options,
+                                               &impl_->world, &report);
+        if (r != KDRT_SUCCESS) {
+            const uint32_t bad = report.invalid_geometry;
+            error = "cannot build the tree of " +
+                    (bad < scene.meshes.size() ? "mesh " + scene.meshes[bad].source : std::string("the meshes")) +
+                    ": " + kdrt_result_string(r);
+            impl_->clear();
+            return false;
+        }
+    }
+    options.scheduler = kdrt_scheduler{};  // `scheduler` ends here; tree_boxes() makes its own
     impl_->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return true;
 }
@@ -733,18 +758,39 @@ bool Renderer::accumulate(const RenderOptions &options, Accumulation &acc, commo
 
 std::vector<TreeBox> Renderer::tree_boxes(uint32_t max_depth) const
 {
+    // A scene does not show its tree, so the boxes are those of the same build, options and all,
+    // over the same triangles: the meshes' one after another, in the order of their IDs.
+    const Impl &im = *impl_;
     std::vector<TreeBox> boxes;
-    for (const MeshData &md : impl_->meshes) {
-        std::vector<uint32_t> stack{0};
-        while (!stack.empty()) {
-            const uint32_t index = stack.back();
-            stack.pop_back();
-            kdrt_node_info info;
-            if (kdrt_tree_node(md.tree, index, &info) != KDRT_SUCCESS) continue;
-            boxes.push_back({to_vec(info.bounds.min), to_vec(info.bounds.max), info.depth, info.is_leaf != 0});
-            if (!info.is_leaf && info.depth < max_depth) stack.push_back(info.above), stack.push_back(info.below);
-        }
+    if (!im.world) return boxes;
+    std::vector<float> positions;
+    std::vector<uint32_t> indices;
+    for (const MeshInstance &mi : im.scene->meshes) {
+        const common::Mesh &mesh = mi.mesh;
+        const uint32_t base = uint32_t(positions.size() / 3);
+        positions.insert(positions.end(), mesh.positions.begin(), mesh.positions.end());
+        for (uint32_t i = 0; i < 3 * mesh.triangle_count(); ++i) indices.push_back(base + (mesh.indices.empty() ? i : mesh.indices[i]));
     }
+    kdrt_triangles all = {};
+    all.positions = positions.data();
+    all.vertex_count = uint32_t(positions.size() / 3);
+    all.indices = indices.data();
+    all.triangle_count = uint32_t(indices.size() / 3);
+    common::ThreadScheduler scheduler(im.threads);
+    kdrt_build_options options = im.options;
+    options.scheduler = scheduler.hooks();
+    kdrt_tree *tree = nullptr;
+    if (kdrt_tree_build(&all, &options, &tree, nullptr) != KDRT_SUCCESS) return boxes;
+    std::vector<uint32_t> stack{0};
+    while (!stack.empty()) {
+        const uint32_t index = stack.back();
+        stack.pop_back();
+        kdrt_node_info info;
+        if (kdrt_tree_node(tree, index, &info) != KDRT_SUCCESS) continue;
+        boxes.push_back({to_vec(info.bounds.min), to_vec(info.bounds.max), info.depth, info.is_leaf != 0});
+        if (!info.is_leaf && info.depth < max_depth) stack.push_back(info.above), stack.push_back(info.below);
+    }
+    kdrt_tree_free(tree);
     return boxes;
 }
 

@@ -98,9 +98,11 @@ struct PathEvent {
     bool reflected = false;  // mirror or total internal reflection
 };
 
-// A scene made ready to trace: a kdrt tree and vertex normals per mesh. It reads the Scene it was
-// prepared from, which must outlive it and whose meshes must not change; materials, lights,
-// camera and settings other than MESH and MAX_LEAF_SIZE may change between renders (animation).
+// A scene made ready to trace: one kdrt_scene over every mesh (a mesh geometry each, its ID the
+// mesh's index; one kd-tree over all their triangles, one query for them all) and vertex normals
+// per mesh. It reads the Scene it was prepared from, which must outlive it and whose meshes must
+// not change; materials, lights, camera and settings other than MESH and MAX_LEAF_SIZE may change
+// between renders (animation).
 class Renderer {
 public:
     Renderer();
@@ -108,8 +110,8 @@ public:
     Renderer(const Renderer &) = delete;
     Renderer &operator=(const Renderer &) = delete;
 
-    // Builds the trees (on `threads` threads, 0 = every core; by the SAH unless told otherwise),
-    // after load_meshes. false with a message when a tree cannot be built.
+    // Builds the meshes' scene (on `threads` threads, 0 = every core; by the SAH unless told
+    // otherwise), after load_meshes. false with a message when it cannot be built.
     bool prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder = TreeBuilder::sah);
     double build_seconds() const;
 
@@ -124,7 +126,9 @@ public:
     bool accumulate(const RenderOptions &options, Accumulation &acc, common::ThreadScheduler &scheduler,
                     std::string &error) const;
 
-    // Every mesh tree's node boxes down to max_depth (the root is depth 0), parents first.
+    // The node boxes of the meshes' kd-tree down to max_depth (the root is depth 0), parents
+    // first; none without meshes. Built again for the purpose (the scene does not show its tree),
+    // from the same triangles with the same options.
     std::vector<TreeBox> tree_boxes(uint32_t max_depth) const;
 
     // Follows one ray through mirrors and glass the way the shading does (pure refraction:

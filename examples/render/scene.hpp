@@ -1,5 +1,5 @@
 // kdrt-render's scene model: exactly what the presets and scene files use, nothing more.
-// Spheres, quads and triangle meshes (through kdrt trees), sphere and quad lights, a pinhole
+// Spheres, quads and triangle meshes (through one kdrt scene), sphere and quad lights, a pinhole
 // camera; Phong, mirror and glass materials; the original's settings. Plain data: presets
 // (presets.cpp) and scene files (scene_file.cpp) fill it, the renderer (render.cpp) reads it.
 #pragma once

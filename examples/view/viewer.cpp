@@ -1,5 +1,5 @@
-// kdrt-view's state: scenes loaded and their trees built through kdrt_render_core, frames of
-// samples added by Renderer::accumulate on the viewer's ThreadScheduler, the camera moved about
+// kdrt-view's state: scenes loaded and their meshes' tree built through kdrt_render_core, frames
+// of samples added by Renderer::accumulate on the viewer's ThreadScheduler, the camera moved about
 // its target, and the window's pixels composed (image, kd-tree boxes, help).
 #include "viewer.hpp"
 

@@ -94,7 +94,7 @@ private:
     double build_ms_ = 0;
     bool show_boxes_ = false, show_help_ = false;
     uint32_t box_depth_ = 4;
-    std::vector<kr::TreeBox> boxes_;   // to box_depth_, for the current trees
+    std::vector<kr::TreeBox> boxes_;   // to box_depth_, for the current tree
     bool boxes_valid_ = false;
     uint32_t width_ = 0, height_ = 0;  // the window's
     std::vector<uint32_t> pixels_;
