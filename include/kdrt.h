@@ -3667,14 +3667,14 @@ KDRT_API kdrt_query kdrt_default_query(void)
     return q;
 }
 
-/* A walk of one tree with or without rules: the plain walks keep their constant arguments. Used
-   by the _query forms and by scenes, for each tree they walk. */
+/* A walk of one tree with or without rules (any_hit: *best is not filled in). Without, it is
+   kdrt_intersect() or kdrt_occluded() itself, their constant arguments folded in. Used by the
+   _query forms and by scenes, for each tree they walk. */
 static int kdrt__walk(const kdrt_tree *tree, const kdrt_ray *ray, const kdrt__rules *rules,
                       kdrt_hit *best, int any_hit, kdrt__hit_list *list)
 {
     if (rules) return kdrt__traverse(tree, ray, rules, best, any_hit, list, NULL);
-    return any_hit ? kdrt__traverse(tree, ray, NULL, best, 1, NULL, NULL)
-                   : kdrt__traverse(tree, ray, NULL, best, 0, NULL, NULL);
+    return any_hit ? kdrt_occluded(tree, ray) : kdrt_intersect(tree, ray, best);
 }
 
 KDRT_API int kdrt_intersect_query(const kdrt_tree *tree, const kdrt_ray *ray,
@@ -4411,7 +4411,7 @@ static int kdrt__scene_query(const kdrt_scene *sc, const kdrt_ray *ray, const kd
             best->t = list->hits[list->count - 1u].t;
         }
     }
-    found |= kdrt__walk_instances(sc, ray, query, best, any_hit, list);
+    if (sc->instance_count) found |= kdrt__walk_instances(sc, ray, query, best, any_hit, list);
     if (!found && !list) kdrt__miss(best);
     return found;
 }
