@@ -161,6 +161,7 @@ std::vector<kdrt_intersector> intersectors_for(const Options &opt) {
 std::string usage() {
     return "usage: kdrt-bench [options] [MESH_OR_FOLDER ...]\n"
            "       kdrt-bench --accuracy [options] [MESH_OR_FOLDER ...]\n"
+           "       kdrt-bench --scene merged,field [options] [MESH ...]\n"
            "\n"
            "Builds a kd-tree over each mesh for each max leaf size and traces the benchmark frame:\n"
            "the mesh scaled to fill the view in front of a back wall, one primary ray per pixel,\n"
@@ -206,6 +207,12 @@ std::string usage() {
            "  --intersector LIST  watertight (the default), fast (Moeller-Trumbore), or both\n"
            "                      separated by a comma: a row for each, named in the last column\n"
            "  --accuracy          speed beside error counts for each intersector (see below)\n"
+           "  --scene LIST        merged, field or both: kdrt_scene against one tree (see below)\n"
+           "  --instances N       with --scene field: instances in the field (default 1000)\n"
+           "  --instance-triangles N  with --scene field: each mesh simplified to about N\n"
+           "                      triangles first (default 3000; 0: whole)\n"
+           "  --instance-spacing D  with --scene field: the grid's pitch, in the unit the meshes\n"
+           "                      are sized to (default 1: neighbours' boxes overlap)\n"
            "  --hard-rays N       with --accuracy: rays per watertight and per hard-case set\n"
            "                      (default 20000)\n"
            "  -o FILE             write the CSV to FILE (default: standard output): the rows go to\n"
@@ -226,13 +233,33 @@ std::string usage() {
            "kdrt_spawn_ray starts from the sample's hits (SpawnedRays: reflected, through and two\n"
            "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
            "for the same rays started exactly at the hit point, with no offset.\n"
-           "--leaf-sizes, --rays, --compare, --sah-costs and --quality do not apply.\n";
+           "--leaf-sizes, --rays, --compare, --sah-costs and --quality do not apply.\n"
+           "\n"
+           "--scene merged,field measures kdrt_scene against one tree over the same triangles,\n"
+           "with primary and diffuse rays (the frame's, made on the one tree) through both:\n"
+           "  merged  the meshes (default: the bunny, the ogre and nefertiti of\n"
+           "          ../shared/meshes/common), each scaled to a unit box and set side by side, and\n"
+           "          the back wall, as mesh geometries of one scene, against one tree of them all\n"
+           "  field   --instances N (default 1000) of them, each simplified to about\n"
+           "          --instance-triangles N triangles (default 3000; 0: whole), randomly turned,\n"
+           "          scaled by 0.8 to 1.2 and placed on a grid of pitch --instance-spacing D\n"
+           "          (seeded), and the wall, as instances of a tree per mesh, against one tree of\n"
+           "          every instance's triangles in world space\n"
+           "Each scene is also traced with a kdrt_query of every mask bit and with a filter that\n"
+           "takes every hit, and with --compare embree through Embree, as one triangle mesh and as\n"
+           "the scene (its meshes, or a two-level scene of instances). --repeat N (default 5):\n"
+           "timed passes, each tracing every variant in turn; each row holds the median. It\n"
+           "writes Scene;Layout;Query;Rays;RayCount;Triangles;StoredTriangles;Instances;BuildMs;\n"
+           "TraceMs;MRaysPerSec;Versus;VersusRatio;Mismatches;EmbreeBuildMs;EmbreeMRaysPerSec;\n"
+           "EmbreeRatio;EmbreeMismatches (bench/README.md, \"Scenes\").\n";
 }
 
 bool parse_options(int argc, const char *const *argv, Options &out, std::string &error) {
     out = Options();
     out.leaf_sizes = default_leaf_sizes();
     std::string csv_only_option;  // the last option that only the leaf-size CSV takes
+    std::string not_scene_option;  // the last option that --scene has no use for
+    std::string field_option;      // the last option that only --scene field takes
     bool hard_rays_given = false, repeat_given = false, size_given = false;
     for (int i = 1; i < argc; ++i) {
         std::string arg = argv[i];
@@ -249,6 +276,11 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
             arg == "--quality" || arg == "--query")
             csv_only_option = arg;
+        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--sah-costs" || arg == "--quality" ||
+            arg == "--query" || arg == "--builder" || arg == "--intersector" || arg == "--subdivide" ||
+            arg == "--reference-rays" || arg == "--hard-rays")
+            not_scene_option = arg;
+        if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
         size_given = size_given || arg == "--size";
         if (arg == "--help" || arg == "-h") {
@@ -325,6 +357,35 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
                 error = "--query wants plain, filter or both separated by a comma, got '" + v + "'";
                 return false;
             }
+        } else if (arg == "--scene") {
+            if (!value(v)) return false;
+            if (!parse_choices<std::string>(v, {{"merged", "merged"}, {"field", "field"}}, out.scenes)) {
+                error = "--scene wants merged, field or both separated by a comma, got '" + v + "'";
+                return false;
+            }
+        } else if (arg == "--instances") {
+            if (!value(v)) return false;
+            if (!common::parse_count(v, 1000000, out.instances) || out.instances == 0) {
+                error = "--instances wants a whole number from 1 to 1000000, got '" + v + "'";
+                return false;
+            }
+        } else if (arg == "--instance-triangles") {
+            if (!value(v)) return false;
+            if (!common::parse_count(v, KDRT_MAX_TRIANGLES, out.instance_triangles)) {
+                error = "--instance-triangles wants a whole number (0: the meshes whole), got '" + v + "'";
+                return false;
+            }
+        } else if (arg == "--instance-spacing") {
+            if (!value(v)) return false;
+            char *end = nullptr;
+            errno = 0;
+            const double d = std::strtod(v.c_str(), &end);
+            if (v.empty() || std::isspace(static_cast<unsigned char>(v[0])) || errno != 0 || *end != '\0' ||
+                !(d >= 0.1 && d <= 100)) {
+                error = "--instance-spacing wants a number from 0.1 to 100, got '" + v + "'";
+                return false;
+            }
+            out.instance_spacing = d;
         } else if (arg == "--quality") {
             if (!value(v)) return false;
             if (!parse_choices<kdrt_build_quality>(v,
@@ -365,6 +426,27 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.inputs.push_back(arg);
         }
     }
+    if (!out.scenes.empty()) {
+        if (out.accuracy) {
+            error = "--scene and --accuracy are two modes: give one of them";
+            return false;
+        }
+        if (!not_scene_option.empty()) {
+            error = not_scene_option + " does not apply to --scene (each scene is traced with primary and diffuse rays "
+                                       "through trees of kdrt's default options)";
+            return false;
+        }
+        if (!field_option.empty() && std::find(out.scenes.begin(), out.scenes.end(), "field") == out.scenes.end()) {
+            error = field_option + " applies only to --scene field";
+            return false;
+        }
+        if (!repeat_given) out.repeat = 5;
+        return true;
+    }
+    if (!field_option.empty()) {
+        error = field_option + " applies only to --scene field";
+        return false;
+    }
     if (out.accuracy && !csv_only_option.empty()) {
         error = csv_only_option + " does not apply to --accuracy (every set is traced once, median builder, default leaf size)";
         return false;
@@ -403,6 +485,8 @@ Scene make_scene(const common::Mesh &mesh, const std::string &name) {
         for (uint32_t i = 0; i < mesh.vertex_count(); ++i) s.geometry.indices.push_back(i);
     for (size_t i = 0; i < s.geometry.positions.size(); ++i)
         s.geometry.positions[i] = float((s.geometry.positions[i] - centre[i % 3]) * scale);
+    for (int a = 0; a < 3; ++a) s.centre[a] = centre[a];
+    s.scale = scale;
 
     // Camera 3 units in front of the mesh's front face, its view holding [-1.05, 1.05] at z = 0.
     double eye_z = half_depth + 3.0, tan_half = 1.05 / eye_z;
@@ -495,6 +579,8 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
     }
     return bounces;
 }
+
+int take_every_hit(void *, const kdrt_ray *, const kdrt_hit *) { return 1; }
 
 std::vector<size_t> reference_sample(size_t total, size_t count, uint32_t seed) {
     std::vector<size_t> all(total);

@@ -44,6 +44,11 @@ struct Options {
     std::vector<kdrt_intersector> intersectors;
     bool accuracy = false;             // --accuracy: error counts per intersector, not leaf sizes
     size_t hard_rays = 20000;          // --accuracy: rays per watertight and per hard-case set
+    // --scene: "merged" and/or "field", in the order given (scenes.hpp); empty: not the scene mode.
+    std::vector<std::string> scenes;
+    uint32_t instances = 1000;         // --instances: the field's
+    uint32_t instance_triangles = 3000;  // --instance-triangles: each field mesh's, about; 0: whole
+    double instance_spacing = 1;       // --instance-spacing: the field's grid pitch
     std::vector<std::string> inputs;   // mesh files or folders
     bool help = false;
 };
@@ -85,6 +90,8 @@ struct Scene {
     uint32_t mesh_triangles = 0;       // the mesh alone (the stop rule counts these)
     float eye[3] = {0, 0, 0};
     float tan_half_fov = 0;
+    double centre[3] = {0, 0, 0};      // the mesh's vertex p went to (p - centre) * scale, in double,
+    double scale = 1;                  // rounded to float once
 };
 Scene make_scene(const common::Mesh &mesh, const std::string &name);
 
@@ -95,6 +102,10 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
                                 const kdrt_tree *tree, uint32_t seed);
 
 constexpr float kShadowLight[3] = {1.5f, 3.0f, 2.5f};
+
+// A kdrt_filter_fn that takes every candidate: the answers of no filter, at the cost of asking
+// (--query filter, and the scene mode's Query filter).
+int take_every_hit(void *user, const kdrt_ray *ray, const kdrt_hit *candidate);
 
 // Shadow rays (any hit) of the sample whose answer the reference contradicts: not occluded where
 // a triangle is surely hit in the range, or occluded where no triangle can be hit at all.

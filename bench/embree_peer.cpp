@@ -1,4 +1,5 @@
 #include "embree_peer.hpp"
+#include "scenes.hpp"
 #include "common/timing.hpp"
 
 #ifdef KDRT_BENCH_HAVE_EMBREE
@@ -20,6 +21,23 @@ bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, b
     return false;
 }
 
+struct PeerScene::State {};
+PeerScene::PeerScene() = default;
+PeerScene::~PeerScene() = default;
+
+bool PeerScene::build_mesh(const kdrt_triangles &, unsigned, std::string &error) {
+    error = "this kdrt-bench was built without Embree (install libembree-dev and configure again)";
+    return false;
+}
+
+bool PeerScene::build_layout(const SceneLayout &, unsigned, std::string &error) {
+    return build_mesh(kdrt_triangles{}, 0, error);
+}
+
+double PeerScene::median_commit_ms(const SceneLayout &, unsigned) { return 0; }
+
+double PeerScene::trace(const std::vector<kdrt_ray> &, unsigned, std::vector<kdrt_hit> &) const { return 0; }
+
 #else
 
 bool embree_available() { return true; }
@@ -31,6 +49,47 @@ static RTCRay rtc_ray(const kdrt_ray &r) {
     ray.dir_x = r.dir[0], ray.dir_y = r.dir[1], ray.dir_z = r.dir[2];
     ray.tnear = r.tmin, ray.tfar = r.tmax, ray.time = 0, ray.mask = ~0u, ray.id = 0, ray.flags = 0;
     return ray;
+}
+
+// rtcIntersect1's answer for the ray, in kdrt's terms (see PeerScene::trace).
+static kdrt_hit intersect(RTCScene scene, const kdrt_ray &ray) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh;
+    rh.ray = rtc_ray(ray);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &context, &rh);
+    kdrt_hit h;
+    const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    const bool instanced = hit && rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID;
+    h.triangle = hit ? rh.hit.primID : KDRT_INVALID_ID;
+    h.t = rh.ray.tfar, h.u = rh.hit.u, h.v = rh.hit.v;
+    h.geometry = instanced ? rh.hit.instID[0] : hit ? rh.hit.geomID : 0;
+    h.instance = instanced ? rh.hit.instID[0] : KDRT_INVALID_ID;
+    return h;
+}
+
+// A triangle geometry holding a copy of mesh (in Embree's own buffers: it reads vertex buffers 16
+// bytes at a time, past a packed array's end), committed; NULL if Embree could not allocate.
+static RTCGeometry new_triangle_geometry(RTCDevice device, const kdrt_triangles &mesh, RTCBuildQuality quality) {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(geometry, quality);
+    auto *vertices = static_cast<float *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                                   3 * sizeof(float), mesh.vertex_count));
+    auto *indices = static_cast<unsigned *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                     3 * sizeof(unsigned), mesh.triangle_count));
+    if (!vertices || !indices) {
+        rtcReleaseGeometry(geometry);
+        return nullptr;
+    }
+    const size_t stride = mesh.position_stride ? mesh.position_stride : 3 * sizeof(float);
+    for (uint32_t v = 0; v < mesh.vertex_count; ++v)
+        std::memcpy(vertices + 3 * size_t(v), reinterpret_cast<const char *>(mesh.positions) + v * stride, 3 * sizeof(float));
+    for (uint32_t t = 0; t < mesh.triangle_count; ++t)
+        for (int k = 0; k < 3; ++k) indices[3 * size_t(t) + k] = mesh.indices ? mesh.indices[3 * size_t(t) + k] : 3 * t + k;
+    rtcCommitGeometry(geometry);
+    return geometry;
 }
 
 bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
@@ -45,24 +104,13 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
     }
     RTCScene scene = rtcNewScene(device);
     rtcSetSceneBuildQuality(scene, rtc_quality);
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    rtcSetGeometryBuildQuality(geometry, rtc_quality);
-    // Embree's own buffers (it reads vertex buffers 16 bytes at a time, past a packed array's end).
-    auto *vertices = static_cast<float *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                                   3 * sizeof(float), mesh.vertex_count()));
-    auto *indices = static_cast<unsigned *>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                     3 * sizeof(unsigned), mesh.triangle_count()));
-    if (!vertices || !indices) {
+    RTCGeometry geometry = new_triangle_geometry(device, mesh.view(), rtc_quality);
+    if (!geometry) {
         error = "Embree could not allocate its buffers";
-        rtcReleaseGeometry(geometry);
         rtcReleaseScene(scene);
         rtcReleaseDevice(device);
         return false;
     }
-    std::memcpy(vertices, mesh.positions.data(), mesh.positions.size() * sizeof(float));
-    for (uint32_t t = 0; t < mesh.triangle_count(); ++t)
-        for (int k = 0; k < 3; ++k) indices[3 * t + k] = mesh.indices.empty() ? 3 * t + k : mesh.indices[3 * size_t(t) + k];
-    rtcCommitGeometry(geometry);
     rtcAttachGeometry(scene, geometry);
     rtcReleaseGeometry(geometry);
 
@@ -90,21 +138,117 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
         return true;
     }
     out.hits.assign(rays.size(), kdrt_hit{});
-    out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        RTCRayHit rh;
-        rh.ray = rtc_ray(rays[i]);
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene, &context, &rh);
-        kdrt_hit &h = out.hits[i];
-        bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-        h.triangle = hit ? rh.hit.primID : KDRT_INVALID_ID;
-        h.t = rh.ray.tfar, h.u = rh.hit.u, h.v = rh.hit.v;
-    });
+    out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) { out.hits[i] = intersect(scene, rays[i]); });
     rtcReleaseScene(scene);
     rtcReleaseDevice(device);
     return true;
+}
+
+struct PeerScene::State {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;              // what the rays are traced through
+    std::vector<RTCScene> prototypes;      // build_layout: a scene per prototype
+    std::vector<RTCGeometry> instances;    // build_layout: kept to be moved
+    ~State() {
+        for (RTCGeometry g : instances) rtcReleaseGeometry(g);
+        if (scene) rtcReleaseScene(scene);
+        for (RTCScene s : prototypes) rtcReleaseScene(s);
+        if (device) rtcReleaseDevice(device);
+    }
+    bool start(unsigned build_threads, std::string &error) {
+        const std::string config = "threads=" + std::to_string(build_threads);
+        device = rtcNewDevice(config.c_str());
+        if (!device) error = "rtcNewDevice failed";
+        return device != nullptr;
+    }
+    RTCScene new_scene() {
+        RTCScene s = rtcNewScene(device);
+        rtcSetSceneBuildQuality(s, RTC_BUILD_QUALITY_MEDIUM);
+        return s;
+    }
+    // Attaches a triangle geometry of mesh to s under id; false when Embree could not allocate.
+    bool attach_mesh(RTCScene s, const kdrt_triangles &mesh, uint32_t id, std::string &error) {
+        RTCGeometry g = new_triangle_geometry(device, mesh, RTC_BUILD_QUALITY_MEDIUM);
+        if (!g) {
+            error = "Embree could not allocate its buffers";
+            return false;
+        }
+        rtcAttachGeometryByID(s, g, id);
+        rtcReleaseGeometry(g);
+        return true;
+    }
+    bool failed(std::string &error) const {
+        if (rtcGetDeviceError(device) == RTC_ERROR_NONE) return false;
+        error = "Embree failed to build the scene";
+        return true;
+    }
+};
+
+PeerScene::PeerScene() : state_(new State) {}
+PeerScene::~PeerScene() = default;
+
+bool PeerScene::build_mesh(const kdrt_triangles &mesh, unsigned build_threads, std::string &error) {
+    state_.reset(new State);
+    if (!state_->start(build_threads, error)) return false;
+    state_->scene = state_->new_scene();
+    if (!state_->attach_mesh(state_->scene, mesh, 0, error)) return false;
+    common::Stopwatch clock;
+    rtcCommitScene(state_->scene);
+    build_ms_ = clock.ms();
+    return !state_->failed(error);
+}
+
+bool PeerScene::build_layout(const SceneLayout &layout, unsigned build_threads, std::string &error) {
+    state_.reset(new State);
+    State &s = *state_;
+    if (!s.start(build_threads, error)) return false;
+    for (const common::Mesh &mesh : layout.prototypes) {
+        s.prototypes.push_back(s.new_scene());
+        if (!s.attach_mesh(s.prototypes.back(), mesh.view(), 0, error)) return false;
+    }
+    s.scene = s.new_scene();
+    for (uint32_t id = 0; id < layout.first.size(); ++id) {
+        if (id >= layout.instances.size()) {
+            if (!s.attach_mesh(s.scene, geometry_view(layout, id), id, error)) return false;
+            continue;
+        }
+        RTCGeometry g = rtcNewGeometry(s.device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, s.prototypes[layout.instances[id].prototype]);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, layout.instances[id].transform);
+        rtcCommitGeometry(g);
+        rtcAttachGeometryByID(s.scene, g, id);
+        s.instances.push_back(g);
+    }
+    common::Stopwatch clock;
+    for (RTCScene prototype : s.prototypes) rtcCommitScene(prototype);
+    rtcCommitScene(s.scene);
+    build_ms_ = clock.ms();
+    return !s.failed(error);
+}
+
+double PeerScene::median_commit_ms(const SceneLayout &layout, unsigned times) {
+    std::vector<double> ms;
+    for (unsigned k = 0; k <= times; ++k) {
+        const bool last = k == times;  // untimed: back where it began, as kb::median_commit_ms
+        if (last && times % 2 == 0) break;
+        for (size_t id = 0; id < state_->instances.size(); ++id) {
+            float moved[12];
+            std::memcpy(moved, layout.instances[id].transform, sizeof moved);
+            if (k % 2 == 0) moved[3] += 0.01f;
+            rtcSetGeometryTransform(state_->instances[id], 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, moved);
+            rtcCommitGeometry(state_->instances[id]);
+        }
+        common::Stopwatch clock;
+        rtcCommitScene(state_->scene);
+        if (!last) ms.push_back(clock.ms());
+    }
+    return median(ms);
+}
+
+double PeerScene::trace(const std::vector<kdrt_ray> &rays, unsigned threads, std::vector<kdrt_hit> &hits) const {
+    hits.resize(rays.size());
+    RTCScene scene = state_->scene;
+    return common::timed_parallel(rays.size(), threads, [&](size_t i) { hits[i] = intersect(scene, rays[i]); });
 }
 
 #endif

@@ -5,6 +5,7 @@
 #include "kdrt.h"
 #include "common/mesh_io.hpp"
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -27,5 +28,36 @@ const char *peer_quality_name(PeerQuality quality);
 // Embree fails.
 bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
                 PeerQuality quality, unsigned build_threads, PeerRun &out, std::string &error);
+
+struct SceneLayout;
+
+// kdrt-bench --scene's Embree: a scene built once and traced many times, at MEDIUM quality on a
+// device of build_threads threads (0: all cores), with rtcIntersect1 on `threads` threads.
+class PeerScene {
+public:
+    PeerScene();
+    ~PeerScene();
+    PeerScene(const PeerScene &) = delete;
+    PeerScene &operator=(const PeerScene &) = delete;
+
+    // One triangle geometry, ID 0.
+    bool build_mesh(const kdrt_triangles &mesh, unsigned build_threads, std::string &error);
+    // The layout's geometries under their IDs: each instance an RTC_GEOMETRY_TYPE_INSTANCE of its
+    // prototype's own RTCScene, placed by rtcSetGeometryTransform (a two-level scene), each mesh
+    // geometry a triangle geometry.
+    bool build_layout(const SceneLayout &layout, unsigned build_threads, std::string &error);
+    double build_ms() const { return build_ms_; }  // the commits of the whole scene
+    // As kb::median_commit_ms(): every instance moved (rtcSetGeometryTransform, rtcCommitGeometry),
+    // then rtcCommitScene of the top level timed; the median of `times`, the scene as it began.
+    double median_commit_ms(const SceneLayout &layout, unsigned times);
+    // kdrt's terms: t, u, v, triangle (primID; KDRT_INVALID_ID on a miss), geometry (the instance's
+    // ID, else the geometry's), instance (KDRT_INVALID_ID when none). Returns the wall time in ms.
+    double trace(const std::vector<kdrt_ray> &rays, unsigned threads, std::vector<kdrt_hit> &hits) const;
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+    double build_ms_ = 0;
+};
 
 }  // namespace kb

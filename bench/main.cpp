@@ -6,6 +6,7 @@
 
 #include "bench.hpp"
 #include "embree_peer.hpp"
+#include "scenes.hpp"
 #include "oracle/hard_cases.hpp"
 #include "oracle/reference.hpp"
 #include "common/atomic_file.hpp"
@@ -22,7 +23,9 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <iterator>
+#include <memory>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -260,6 +263,226 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
     return failures ? 1 : 0;
 }
 
+// --scene: a tree and a scene, freed when they go out of scope.
+using TreePtr = std::unique_ptr<kdrt_tree, decltype(&kdrt_tree_free)>;
+using ScenePtr = std::unique_ptr<kdrt_scene, decltype(&kdrt_scene_free)>;
+
+// One way of tracing a scene's rays, timed in every pass.
+struct SceneVariant {
+    std::string layout, query;
+    const std::vector<uint32_t> *first;  // where its hits lie in the one mesh (kb::flat_triangle)
+    std::function<double(std::vector<kdrt_hit> &)> trace;  // the rays' answers; the wall time in ms
+    std::vector<double> ms;
+    std::vector<kdrt_hit> hits;
+};
+
+// One --scene: the one tree, the kdrt_scene and, with --compare embree, Embree's two, built; then
+// for primary and diffuse rays, each variant traced in turn --repeat times, and the rows written
+// (the medians). false when the CSV could not be written (write_error says why); a failed build
+// is noted and counted in `failures`.
+bool run_scene(const kb::Options &opt, const kb::SceneLayout &layout, const kdrt_build_options &options, Csv &csv,
+               Progress &progress, int &failures, std::string &write_error) {
+    const auto failed = [&](const std::string &what) {  // true: the CSV is fine, the run goes on
+        progress.note("kdrt-bench: --scene " + layout.name + ": " + what);
+        ++failures;
+        return true;
+    };
+    const unsigned commits = 21;  // top-level rebuilds timed, of the field
+    const uint32_t seed = 1;
+    const bool instanced = !layout.instances.empty();
+    const kdrt_triangles world = layout.frame.geometry.view();
+
+    kdrt_tree *built = nullptr;
+    common::Stopwatch clock;
+    kdrt_result r = kdrt_tree_build(&world, &options, &built, nullptr);
+    const double tree_ms = clock.ms();
+    TreePtr tree(built, kdrt_tree_free);
+    if (r != KDRT_SUCCESS) return failed(std::string("the one tree: ") + kdrt_result_string(r));
+    std::vector<TreePtr> prototypes;
+    std::vector<kdrt_tree *> prototype_trees;
+    for (const common::Mesh &mesh : layout.prototypes) {
+        const kdrt_triangles view = mesh.view();
+        r = kdrt_tree_build(&view, &options, &built, nullptr);
+        prototypes.emplace_back(built, kdrt_tree_free);
+        prototype_trees.push_back(built);
+        if (r != KDRT_SUCCESS) return failed("the tree of " + mesh.name + ": " + kdrt_result_string(r));
+    }
+    const std::vector<kdrt_geometry> geometries = kb::kdrt_geometries(layout, prototype_trees);
+    kdrt_scene *made = nullptr;
+    kdrt_build_report report;
+    clock = common::Stopwatch();
+    r = kdrt_scene_build(geometries.data(), uint32_t(geometries.size()), &options, &made, &report);
+    const double scene_ms = clock.ms();
+    ScenePtr scene(made, kdrt_scene_free);
+    if (r != KDRT_SUCCESS)
+        return failed(std::string("kdrt_scene_build: ") + kdrt_result_string(r) + " (geometry " +
+                      std::to_string(report.invalid_geometry) + ")");
+    std::string error;
+    const double commit_ms = instanced ? kb::median_commit_ms(scene.get(), layout, commits, error) : scene_ms;
+    if (commit_ms < 0) return failed(error);
+
+    kb::PeerScene peer_tree, peer_scene;
+    bool embree = opt.compare_embree;
+    if (embree && (!peer_tree.build_mesh(world, opt.build_threads, error) ||
+                   !peer_scene.build_layout(layout, opt.build_threads, error))) {
+        failed("Embree: " + error);
+        embree = false;
+    }
+    const double peer_scene_ms = !embree ? 0 : instanced ? peer_scene.median_commit_ms(layout, commits) : peer_scene.build_ms();
+    char built_in[160];
+    std::snprintf(built_in, sizeof built_in, "built in %.1f ms (one tree), %.1f ms (kdrt_scene_build)", tree_ms, scene_ms);
+    progress.note("kdrt-bench: --scene " + layout.name + ": " + std::to_string(geometries.size()) + " geometries, " +
+                  std::to_string(world.triangle_count) + " triangles; " + built_in);
+
+    const std::string tree_layout = instanced ? "flattened" : "merged", scene_layout = instanced ? "instanced" : "meshes";
+    const double tolerance = instanced ? 1e-4 : 0;  // instances are exact to float rounding only
+    const std::vector<uint32_t> one_tree = {0};
+    kdrt_query mask = kdrt_default_query();  // every mask bit, no filter
+    kdrt_query filter = mask;
+    filter.filter = kb::take_every_hit;
+    for (kb::RayKind kind : {kb::RayKind::primary, kb::RayKind::diffuse}) {
+        const std::vector<kdrt_ray> rays = kb::make_rays(layout.frame, kind, opt.width, opt.height, tree.get(), seed);
+        const auto timed = [&](std::vector<kdrt_hit> &hits, auto &&query) {
+            hits.resize(rays.size());
+            return common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { query(rays[i], hits[i]); });
+        };
+        const auto through_scene = [&](const kdrt_query *q) {
+            return [&, q](std::vector<kdrt_hit> &hits) {
+                return timed(hits, [&](const kdrt_ray &ray, kdrt_hit &hit) { kdrt_scene_intersect(scene.get(), &ray, q, &hit); });
+            };
+        };
+        std::vector<SceneVariant> variants;
+        variants.push_back({tree_layout, "none", &one_tree, [&](std::vector<kdrt_hit> &hits) {
+            return timed(hits, [&](const kdrt_ray &ray, kdrt_hit &hit) { kdrt_intersect(tree.get(), &ray, &hit); });
+        }, {}, {}});
+        variants.push_back({scene_layout, "none", &layout.first, through_scene(nullptr), {}, {}});
+        variants.push_back({scene_layout, "mask", &layout.first, through_scene(&mask), {}, {}});
+        variants.push_back({scene_layout, "filter", &layout.first, through_scene(&filter), {}, {}});
+        if (embree) {
+            variants.push_back({tree_layout, "embree", &one_tree, [&](std::vector<kdrt_hit> &hits) {
+                return peer_tree.trace(rays, opt.threads, hits);
+            }, {}, {}});
+            variants.push_back({scene_layout, "embree", &layout.first, [&](std::vector<kdrt_hit> &hits) {
+                return peer_scene.trace(rays, opt.threads, hits);
+            }, {}, {}});
+        }
+        // Every variant in turn, pass after pass, so that a busy moment of the machine falls on all.
+        for (unsigned pass = 0; pass < opt.repeat; ++pass) {
+            for (SceneVariant &v : variants) v.ms.push_back(v.trace(v.hits));
+            progress.step(layout.name + " " + (kind == kb::RayKind::primary ? "primary" : "diffuse") + " pass " +
+                          std::to_string(pass + 1));
+        }
+
+        const SceneVariant &base = variants[0], &plain = variants[1];
+        for (size_t k = 0; k < 4; ++k) {
+            const SceneVariant &v = variants[k];
+            kb::SceneRow row;
+            row.scene = layout.name;
+            row.layout = v.layout;
+            row.query = v.query;
+            row.rays = kind == kb::RayKind::primary ? "primary" : "diffuse";
+            row.ray_count = rays.size();
+            row.triangles = world.triangle_count;
+            row.stored_triangles = k == 0 ? world.triangle_count : kb::stored_triangles(layout);
+            row.instances = k == 0 ? 0 : uint32_t(layout.instances.size());
+            row.build_ms = k == 0 ? tree_ms : commit_ms;
+            row.trace_ms = kb::median(v.ms);
+            if (k == 1) {  // the scene against the one tree
+                row.versus = tree_layout;
+                row.versus_trace_ms = kb::median(base.ms);
+                row.mismatches = kb::count_scene_mismatches(v.hits, *v.first, base.hits, *base.first, tolerance);
+            } else if (k > 1) {  // a query that changes nothing against none
+                row.versus = "none";
+                row.versus_trace_ms = kb::median(plain.ms);
+                row.mismatches = kb::count_scene_mismatches(v.hits, *v.first, plain.hits, *plain.first, 0);
+            }
+            if (embree && k < 2) {
+                const SceneVariant &peer = variants[4 + k];
+                row.embree = true;
+                row.embree_build_ms = k == 0 ? peer_tree.build_ms() : peer_scene_ms;
+                row.embree_trace_ms = kb::median(peer.ms);
+                row.embree_mismatches = kb::count_scene_mismatches(peer.hits, *peer.first, base.hits, *base.first, 1e-4);
+            }
+            if (!csv.line(kb::scene_csv_row(row), write_error)) return false;
+        }
+    }
+    return true;
+}
+
+// --scene: the meshes named (default: the bunny, the ogre and nefertiti of the shared folder, else
+// generated ones), each scene of opt.scenes measured by run_scene.
+int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
+    int failures = 0;
+    std::string error, write_error;
+    std::vector<std::string> args = opt.inputs;
+    if (args.empty()) {
+        for (const char *name : {"stanford-bunny.obj", "ogre.obj", "nefertiti.obj"})
+            args.push_back(std::string(KDRT_MESH_DIR "/common/") + name);
+        std::error_code ec;
+        if (!fs::is_regular_file(args[0], ec) || !fs::is_regular_file(args[1], ec) || !fs::is_regular_file(args[2], ec))
+            args.clear();
+    }
+    std::vector<common::Mesh> meshes;
+    if (args.empty()) {
+        progress.note("kdrt-bench: no meshes given and " KDRT_MESH_DIR "/common lacks stanford-bunny.obj, ogre.obj or "
+                      "nefertiti.obj: using generated meshes");
+        for (Input &in : generated_inputs()) meshes.push_back(std::move(in.mesh));
+    }
+    std::vector<std::string> empty_folders;
+    const std::vector<std::string> files = expand_inputs(args, empty_folders);
+    for (const std::string &folder : empty_folders) {
+        progress.note("kdrt-bench: skipping " + folder + ": a folder with no mesh files (.off, .obj, .ply, .stl, .gltf, .glb)");
+        ++failures;
+    }
+    for (const std::string &path : files) {
+        common::Mesh mesh;
+        if (!common::load_mesh(path, mesh, error)) {
+            progress.note("kdrt-bench: skipping " + path + ": " + error);
+            ++failures;
+            continue;
+        }
+        meshes.push_back(std::move(mesh));
+    }
+    if (meshes.empty()) {
+        progress.note("kdrt-bench: --scene: no mesh to place");
+        return 1;
+    }
+    if (!csv.line(kb::scene_csv_header(), write_error)) {
+        progress.note("kdrt-bench: " + write_error);
+        return 1;
+    }
+    common::ThreadScheduler build_pool(opt.build_threads);
+    kdrt_build_options options = kdrt_default_build_options();
+    if (build_pool.threads() > 1) options.scheduler = build_pool.hooks();
+    progress.total = opt.scenes.size() * 2 * opt.repeat;
+    for (const std::string &name : opt.scenes) {
+        kb::SceneLayout layout;
+        if (name == "merged") {
+            layout = kb::merged_layout(meshes);
+        } else {
+            std::vector<common::Mesh> simplified;
+            std::string counts;
+            for (const common::Mesh &mesh : meshes) {
+                simplified.push_back(kb::clustered(kb::unit_sized(mesh), opt.instance_triangles));
+                counts += (counts.empty() ? "" : ", ") + mesh.name + " " + std::to_string(simplified.back().triangle_count());
+            }
+            progress.note("kdrt-bench: --scene field: " + std::to_string(opt.instances) + " instances of " + counts +
+                          " triangles");
+            layout = kb::field_layout(simplified, opt.instances, 1, opt.instance_spacing);
+        }
+        if (!run_scene(opt, layout, options, csv, progress, failures, write_error)) {
+            progress.note("kdrt-bench: " + write_error);
+            return 1;
+        }
+    }
+    if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");
+    if (!csv.finish(error)) {
+        progress.note("kdrt-bench: " + error);
+        return 1;
+    }
+    return failures ? 1 : 0;
+}
+
 int run(int argc, char **argv) {
     kb::Options opt;
     std::string error;
@@ -285,6 +508,7 @@ int run(int argc, char **argv) {
     }
 
     Progress progress;
+    if (!opt.scenes.empty()) return run_scenes(opt, csv, progress);
     int failures = 0;
     std::vector<Input> inputs;
     std::vector<std::string> args = opt.inputs;
@@ -418,7 +642,7 @@ int run(int argc, char **argv) {
                         // filter: the _query forms with a filter that takes every hit, the
                         // same answers as the plain queries at the cost of asking.
                         kdrt_query q = kdrt_default_query();
-                        q.filter = [](void *, const kdrt_ray *, const kdrt_hit *) { return 1; };
+                        q.filter = kb::take_every_hit;
                         const kdrt_query *rules = query == "filter" ? &q : nullptr;
                         if (shadow && rules) {
                             row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded_query(tree, &rays[i], rules); });

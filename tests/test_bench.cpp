@@ -1,7 +1,8 @@
 // kdrt-bench's pieces: options, the original's leaf-size stop rule, the CSV format, the scene,
 // the reference comparison behind the Mismatches column, the diffuse rays' spawned origins, and
-// the --accuracy sets, rows and summary.
+// the --accuracy sets, rows and summary, and the --scene worlds, their comparison and rows.
 #include "bench.hpp"
+#include "scenes.hpp"
 #include "test_support.hpp"
 
 #include <catch2/catch.hpp>
@@ -582,4 +583,184 @@ TEST_CASE("Mismatches counts answers that contradict the reference", "[bench]") 
     }
     REQUIRE(behind.triangle >= scene.mesh_triangles);
     CHECK(kb::count_mismatches(oracle, refs, sample, rays, broken) == 3);
+}
+
+TEST_CASE("bench option --scene: merged, field, their options, and what does not apply", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    REQUIRE(parse({}, opt, error));
+    CHECK(opt.scenes.empty());
+    CHECK(opt.instances == 1000);
+    CHECK(opt.instance_triangles == 3000);
+
+    REQUIRE(parse({"--scene", "merged,field"}, opt, error));
+    CHECK(opt.scenes == std::vector<std::string>{"merged", "field"});
+    CHECK(opt.repeat == 5);  // timed passes, the median kept
+    CHECK(opt.instance_spacing == 1);
+    REQUIRE(parse({"--scene", "field", "--instances", "20", "--instance-triangles", "0", "--instance-spacing", "1.5",
+                   "--repeat", "2", "--size", "32x32", "--threads", "2", "--build-threads", "2", "--compare", "embree",
+                   "-o", "s.csv", "a.obj"},
+                  opt, error));
+    CHECK(opt.instance_spacing == 1.5);
+    CHECK(opt.scenes == std::vector<std::string>{"field"});
+    CHECK(opt.instances == 20);
+    CHECK(opt.instance_triangles == 0);
+    CHECK(opt.repeat == 2);
+    CHECK(opt.compare_embree);
+    CHECK(opt.inputs == std::vector<std::string>{"a.obj"});
+
+    const std::vector<std::vector<const char *>> bad = {
+        {"--scene", "forest"},        {"--scene", "merged,"},          {"--scene"},
+        {"--instances", "0"},         {"--instances", "2000000"},      {"--instance-triangles", "-1"},
+        {"--scene", "field", "--instance-spacing", "0"}, {"--scene", "field", "--instance-spacing", "2x"},
+        {"--scene", "field", "--instance-spacing", "nan"},
+        {"--instances", "5"},         {"--scene", "merged", "--instances", "5"},  // only the field has instances
+        {"--scene", "field", "--accuracy"}, {"--scene", "merged", "--rays", "shadow"},
+        {"--scene", "merged", "--leaf-sizes", "4"}, {"--scene", "field", "--builder", "sah"}};
+    for (const auto &args : bad) {
+        INFO(args[0] << " " << (args.size() > 1 ? args[1] : "") << " " << (args.size() > 2 ? args[2] : ""));
+        error.clear();
+        CHECK_FALSE(parse(args, opt, error));
+        bool named = false;
+        for (const char *arg : args) named = named || (arg[0] == '-' && error.find(arg) != std::string::npos);
+        CHECK(named);
+    }
+}
+
+TEST_CASE("scene worlds: unit-sized meshes, clustering, and their layouts as one mesh and as geometries", "[bench]") {
+    const common::Mesh ball = kt::sphere(16, 32, 3.0), ring = common::torus(48, 24, 1.0, 0.4);
+    const common::Mesh unit = kb::unit_sized(kt::translated(ball, 5, -2, 1));
+    float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+    for (size_t i = 0; i < unit.positions.size(); ++i)
+        lo[i % 3] = std::min(lo[i % 3], unit.positions[i]), hi[i % 3] = std::max(hi[i % 3], unit.positions[i]);
+    for (int a = 0; a < 3; ++a) {
+        CHECK(std::fabs(lo[a] + hi[a]) < 1e-6);
+        CHECK(hi[a] - lo[a] == Approx(1.0).epsilon(1e-6));
+    }
+
+    // Clustering: at most the target, fewer vertices, no triangle with a repeated corner.
+    CHECK(kb::clustered(ring, 0).indices == ring.indices);
+    CHECK(kb::clustered(ring, 1u << 20).indices == ring.indices);
+    const common::Mesh coarse = kb::clustered(ring, 500);
+    CHECK(coarse.triangle_count() <= 500);
+    CHECK(coarse.triangle_count() > 250);
+    CHECK(coarse.vertex_count() < ring.vertex_count());
+    for (uint32_t t = 0; t < coarse.triangle_count(); ++t) {
+        const uint32_t *c = &coarse.indices[3 * size_t(t)];
+        CHECK((c[0] != c[1] && c[1] != c[2] && c[0] != c[2]));
+    }
+
+    // merged: the meshes' runs of triangles in order, then the wall, and its views cover them.
+    const kb::SceneLayout merged = kb::merged_layout({ball, ring});
+    const uint32_t total = merged.frame.geometry.triangle_count();
+    REQUIRE(merged.first == std::vector<uint32_t>{0, ball.triangle_count(), ball.triangle_count() + ring.triangle_count()});
+    CHECK(total == ball.triangle_count() + ring.triangle_count() + 2);
+    CHECK(merged.instances.empty());
+    CHECK(kb::stored_triangles(merged) == total);
+    CHECK(kb::geometry_view(merged, 1).triangle_count == ring.triangle_count());
+    CHECK(kb::geometry_view(merged, 2).triangle_count == 2);
+    CHECK(kb::geometry_view(merged, 2).indices == &merged.frame.geometry.indices[3 * size_t(total - 2)]);
+
+    // field: seeded; instance i of mesh i % 2, its transform taking the mesh to its run of the one
+    // mesh to float rounding.
+    const kb::SceneLayout field = kb::field_layout({ball, coarse}, 7, 3), again = kb::field_layout({ball, coarse}, 7, 3);
+    REQUIRE(field.instances.size() == 7);
+    REQUIRE(field.first.size() == 8);
+    CHECK(field.frame.geometry.positions == again.frame.geometry.positions);
+    CHECK(kb::stored_triangles(field) == ball.triangle_count() + coarse.triangle_count() + 2);
+    CHECK(field.frame.geometry.triangle_count() == 4 * ball.triangle_count() + 3 * coarse.triangle_count() + 2);
+    for (uint32_t i = 0; i < 7; ++i) {
+        const kb::SceneLayout::Placement &p = field.instances[i];
+        CHECK(p.prototype == i % 2);
+        const common::Mesh &mesh = field.prototypes[p.prototype];
+        for (uint32_t t = 0; t < mesh.triangle_count(); t += 37)
+            for (int k = 0; k < 3; ++k) {
+                const float *o = &mesh.positions[3 * size_t(mesh.indices[3 * size_t(t) + k])];
+                const uint32_t w = field.frame.geometry.indices[3 * size_t(field.first[i] + t) + k];
+                for (int a = 0; a < 3; ++a) {
+                    const float *m = &p.transform[4 * a];
+                    const double x = double(m[0]) * o[0] + double(m[1]) * o[1] + double(m[2]) * o[2] + m[3];
+                    CHECK(std::fabs(x - field.frame.geometry.positions[3 * size_t(w) + a]) < 1e-5);
+                }
+            }
+    }
+}
+
+TEST_CASE("scene mismatches: exact for the merged meshes, to a tolerance for instances", "[bench]") {
+    const auto hit = [](uint32_t geometry, uint32_t triangle, float t) {
+        kdrt_hit h{};
+        h.geometry = geometry, h.triangle = triangle, h.t = t, h.u = 0.25f, h.v = 0.5f;
+        h.instance = KDRT_INVALID_ID;
+        return h;
+    };
+    kdrt_hit miss = hit(0, KDRT_INVALID_ID, INFINITY);
+    const std::vector<uint32_t> one = {0}, parts = {0, 10, 30};
+    CHECK(kb::flat_triangle(hit(2, 4, 1), parts) == 34);
+    CHECK(kb::flat_triangle(hit(0, 4, 1), one) == 4);
+    CHECK(kb::flat_triangle(miss, parts) == KDRT_INVALID_ID);
+    CHECK(kb::flat_triangle(hit(3, 0, 1), parts) == KDRT_INVALID_ID);  // no such geometry
+
+    const std::vector<kdrt_hit> tree = {hit(0, 12, 2.0f), hit(0, 34, 3.0f), miss, hit(0, 5, 1.0f)};
+    const std::vector<kdrt_hit> scene = {hit(1, 2, 2.0f), hit(2, 4, 3.0f), miss, hit(0, 5, 1.0f)};
+    CHECK(kb::count_scene_mismatches(scene, parts, tree, one, 0) == 0);
+    std::vector<kdrt_hit> off = scene;
+    off[0].t = std::nextafter(2.0f, 3.0f);  // one ulp: exact counts it, the tolerance does not
+    off[1].u = 0.125f;
+    CHECK(kb::count_scene_mismatches(off, parts, tree, one, 0) == 2);
+    CHECK(kb::count_scene_mismatches(off, parts, tree, one, 1e-4) == 0);
+    off[2] = hit(0, 1, 5.0f);           // a hit against a miss
+    off[3] = hit(1, 0, 1.00001f);       // another triangle at the same t: a shared edge
+    CHECK(kb::count_scene_mismatches(off, parts, tree, one, 1e-4) == 1);
+    off[3] = hit(1, 0, 1.001f);         // another triangle, farther
+    CHECK(kb::count_scene_mismatches(off, parts, tree, one, 1e-4) == 2);
+    CHECK(kb::count_scene_mismatches(tree, one, {tree[0]}, one, 0) == 3);  // missing answers count
+
+    kb::SceneRow row;
+    row.scene = "field", row.layout = "instanced", row.query = "none", row.rays = "primary", row.ray_count = 1000;
+    row.triangles = 3002, row.stored_triangles = 1502, row.instances = 2, row.build_ms = 0.5, row.trace_ms = 2;
+    CHECK(kb::scene_csv_row(row) == "field;instanced;none;primary;1000;3002;1502;2;0.500;2.000;0.500;;;;;;;");
+    row.versus = "flattened", row.versus_trace_ms = 3, row.mismatches = 1;
+    row.embree = true, row.embree_build_ms = 0.25, row.embree_trace_ms = 1, row.embree_mismatches = 4;
+    CHECK(kb::scene_csv_row(row) == "field;instanced;none;primary;1000;3002;1502;2;0.500;2.000;0.500;flattened;1.500;1;"
+                                    "0.250;1.000;0.500;4");
+    CHECK(split(kb::scene_csv_header(), ';').size() == split(kb::scene_csv_row(row), ';').size());
+}
+
+TEST_CASE("scene worlds through kdrt_scene answer as the one tree over their triangles", "[bench]") {
+    const common::Mesh ball = kt::sphere(16, 32, 1.0), ring = common::torus(48, 24, 1.0, 0.4);
+    for (bool instanced : {false, true}) {
+        INFO((instanced ? "field" : "merged"));
+        const kb::SceneLayout layout = instanced ? kb::field_layout({ball, ring}, 20, 1) : kb::merged_layout({ball, ring});
+        const kdrt_triangles world = layout.frame.geometry.view();
+        kdrt_tree *one = nullptr;
+        REQUIRE(kdrt_tree_build(&world, nullptr, &one, nullptr) == KDRT_SUCCESS);
+        kt::TreePtr tree(one);
+        std::vector<kt::TreePtr> owned;
+        std::vector<kdrt_tree *> prototypes;
+        for (const common::Mesh &mesh : layout.prototypes) {
+            owned.push_back(kt::build(mesh, 4, KDRT_BUILDER_SAH));
+            prototypes.push_back(owned.back().get());
+        }
+        const std::vector<kdrt_geometry> geometries = kb::kdrt_geometries(layout, prototypes);
+        REQUIRE(geometries.size() == layout.first.size());
+        kdrt_scene *scene = nullptr;
+        REQUIRE(kdrt_scene_build(geometries.data(), uint32_t(geometries.size()), nullptr, &scene, nullptr) == KDRT_SUCCESS);
+        std::string error;
+        CHECK(kb::median_commit_ms(scene, layout, instanced ? 3 : 0, error) >= 0);
+        for (uint32_t i = 0; i < layout.instances.size(); ++i)  // moved and back
+            CHECK(std::memcmp(kdrt_scene_geometry(scene, i)->transform, layout.instances[i].transform, 48) == 0);
+        for (kb::RayKind kind : {kb::RayKind::primary, kb::RayKind::diffuse}) {
+            const std::vector<kdrt_ray> rays = kb::make_rays(layout.frame, kind, 48, 48, tree.get(), 1);
+            std::vector<kdrt_hit> a(rays.size()), b(rays.size());
+            size_t hits = 0;
+            for (size_t i = 0; i < rays.size(); ++i) {
+                kdrt_intersect(tree.get(), &rays[i], &a[i]);
+                hits += kdrt_scene_intersect(scene, &rays[i], nullptr, &b[i]);
+            }
+            if (kind == kb::RayKind::primary) CHECK(hits == rays.size());  // the wall is behind everything
+            const std::vector<uint32_t> one_tree = {0};
+            CHECK(kb::count_scene_mismatches(b, layout.first, a, one_tree, instanced ? 1e-4 : 0) == 0);
+        }
+        kdrt_scene_free(scene);
+    }
 }
