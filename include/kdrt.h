@@ -4424,6 +4424,15 @@ KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
         kdrt__miss(hit);
         return 0;
     }
+    if (scene->meshes && !scene->instance_count &&
+        (!query || (!query->flags && !query->filter && query->mask && scene->meshes->masks_full))) {
+        /* Static meshes, every hit counting: the one tree's query, its hit named. */
+        const kdrt__part *part;
+        if (!kdrt_intersect(scene->meshes, ray, hit)) return 0;
+        part = kdrt__part_of(&scene->meshes->meshes, hit->triangle);
+        hit->triangle -= part->first, hit->geometry = part->id;
+        return 1;
+    }
     return kdrt__scene_query(scene, ray, query, hit, 0, NULL);
 }
 
