@@ -103,6 +103,17 @@ struct Progress {
     }
 };
 
+// expand_inputs(), each folder without a mesh file noted and counted as a failure.
+std::vector<std::string> mesh_files(const std::vector<std::string> &args, Progress &progress, int &failures) {
+    std::vector<std::string> empty_folders;
+    std::vector<std::string> files = expand_inputs(args, empty_folders);
+    for (const std::string &folder : empty_folders) {
+        progress.note("kdrt-bench: skipping " + folder + ": a folder with no mesh files (.off, .obj, .ply, .stl, .gltf, .glb)");
+        ++failures;
+    }
+    return files;
+}
+
 // Where the CSV goes: standard output, or with -o OUT a rows-so-far file OUT.partial beside OUT,
 // flushed and checked row by row and renamed over OUT when the run ends with at least one row.
 // A run that is interrupted, cannot write, or writes no row leaves OUT as it was, and its whole
@@ -428,12 +439,7 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
                       "nefertiti.obj: using generated meshes");
         for (Input &in : generated_inputs()) meshes.push_back(std::move(in.mesh));
     }
-    std::vector<std::string> empty_folders;
-    const std::vector<std::string> files = expand_inputs(args, empty_folders);
-    for (const std::string &folder : empty_folders) {
-        progress.note("kdrt-bench: skipping " + folder + ": a folder with no mesh files (.off, .obj, .ply, .stl, .gltf, .glb)");
-        ++failures;
-    }
+    const std::vector<std::string> files = mesh_files(args, progress, failures);
     for (const std::string &path : files) {
         common::Mesh mesh;
         if (!common::load_mesh(path, mesh, error)) {
@@ -517,12 +523,7 @@ int run(int argc, char **argv) {
         progress.note("kdrt-bench: no meshes given and " KDRT_MESH_DIR "/seed is absent: using generated meshes");
         inputs = generated_inputs();
     }
-    std::vector<std::string> empty_folders;
-    const std::vector<std::string> files = expand_inputs(args, empty_folders);
-    for (const std::string &folder : empty_folders) {
-        progress.note("kdrt-bench: skipping " + folder + ": a folder with no mesh files (.off, .obj, .ply, .stl, .gltf, .glb)");
-        ++failures;
-    }
+    const std::vector<std::string> files = mesh_files(args, progress, failures);
     for (const std::string &path : files) {
         Input in;
         in.label = upper_stem(path);

@@ -423,6 +423,15 @@ struct SceneQueries {
         hits.resize(std::min(n, k));
         return hits;
     }
+    // Hits of any query (nearest, any, up to 8 nearest) summed over rays: 0 when nothing is seen.
+    size_t anything(const std::vector<kdrt_ray> &rays) {
+        size_t n = 0;
+        for (const kdrt_ray &ray : rays) {
+            kdrt_hit h{};
+            n += size_t(intersect(ray, h) + occluded(ray)) + nearest_k(ray, 8).size();
+        }
+        return n;
+    }
     // The filter saw what it should have (when there is one).
     void check_filter(size_t rays) const {
         if (!query.filter) return;
@@ -1017,12 +1026,7 @@ TEST_CASE("scene: masks, culled faces and filters on meshes: the one tree's answ
     // Query mask 0 hits nothing, whatever the geometries' masks.
     const Rules none{"mask 0", 0, 0, {}};
     SceneQueries q(scene.get(), none, &f.world);
-    size_t anything = 0;
-    for (const kdrt_ray &ray : rays) {
-        kdrt_hit h{};
-        anything += q.intersect(ray, h) + q.occluded(ray) + q.nearest_k(ray, 8).size();
-    }
-    CHECK(anything == 0);
+    CHECK(q.anything(rays) == 0);
 }
 
 TEST_CASE("scene: instances under every kind of transform, against the world-space brute force", "[scene]") {
@@ -1228,12 +1232,7 @@ TEST_CASE("scene: masks, culled faces and filters across meshes and instances", 
     for (const Rules *rules : {&both, &none}) {
         INFO(rules->name);
         SceneQueries q(scene.get(), *rules, &f.world);
-        size_t anything = 0;
-        for (const kdrt_ray &ray : rays) {
-            kdrt_hit h{};
-            anything += q.intersect(ray, h) + q.occluded(ray) + q.nearest_k(ray, 8).size();
-        }
-        CHECK(anything == 0);
+        CHECK(q.anything(rays) == 0);
     }
 }
 
