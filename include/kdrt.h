@@ -3955,53 +3955,56 @@ static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float trans
 #define KDRT__LEVEL_INSTANCE_COST 8.0
 #define KDRT__LEVEL_EXTRA_REFS 8u
 
+/* Bins an axis of a node, at most (4 a box below that), the top level's candidate planes at
+   their boundaries. */
+#define KDRT__LEVEL_BINS 32u
+
 typedef struct kdrt__level_builder {
     const kdrt_allocator *allocator;
     const kdrt__instance *instances;
     kdrt__level level;
     uint32_t node_capacity, ref_capacity;
     uint32_t extra_refs, max_depth; /* references it may still add; depth limit */
-    float *keys;                    /* scratch: the sorted box faces of a node, 2 per instance */
 } kdrt__level_builder;
 
-static int kdrt__float_order(const void *a, const void *b)
+/* The bin of coordinate x among bins of this width from lo: clamped to the first and the last. */
+static uint32_t kdrt__level_bin(float x, float lo, double width, uint32_t bins)
 {
-    const float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
+    const double f = ((double)x - lo) / width;
+    return f <= 0.0 ? 0u : (f >= bins - 1u ? bins - 1u : (uint32_t)f);
 }
 
-/* The best plane of the node [lo, hi] over items (n > 1) by the SAH, each box face inside the
-   node a candidate: its axis (3: no plane beats a leaf) and position. */
-static uint32_t kdrt__level_plane(kdrt__level_builder *b, const uint32_t *items, uint32_t n,
+/* The best plane of the node [lo, hi] over items (n > 1) by the SAH: its axis (3: no plane beats
+   a leaf) and position. The candidates are the boundaries of KDRT__LEVEL_BINS equal bins an
+   axis, each box counted by the bins its two faces fall in: O(n) a node (sorting the faces at
+   every node instead built a field of 1,000 instances in 6.1 ms against 3.3, for no faster rays). */
+static uint32_t kdrt__level_plane(const kdrt__level_builder *b, const uint32_t *items, uint32_t n,
                                   const float lo[3], const float hi[3], float *split)
 {
     const double area = kdrt__half_area(lo, hi);
+    const uint32_t bins = n < KDRT__LEVEL_BINS / 4u ? 4u * n : KDRT__LEVEL_BINS;
     double best = KDRT__LEVEL_INSTANCE_COST * n;
-    uint32_t axis, best_axis = 3, i;
-    float *mins = b->keys, *maxs = b->keys + n;
+    uint32_t axis, best_axis = 3, i, k;
     if (!(area > 0.0)) return 3;
     for (axis = 0; axis < 3; ++axis) {
-        uint32_t below = 0, ended = 0; /* boxes starting before the plane; ending at or before it */
-        if (!(hi[axis] > lo[axis])) continue;
+        uint32_t starts[KDRT__LEVEL_BINS], ends[KDRT__LEVEL_BINS], below = 0, ended = 0;
+        const double width = ((double)hi[axis] - lo[axis]) / bins;
+        if (!(width > 0.0)) continue;
+        memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
         for (i = 0; i < n; ++i) {
-            mins[i] = b->instances[items[i]].box.min[axis];
-            maxs[i] = b->instances[items[i]].box.max[axis];
+            const kdrt_aabb *box = &b->instances[items[i]].box;
+            starts[kdrt__level_bin(box->min[axis], lo[axis], width, bins)] += 1u;
+            ends[kdrt__level_bin(box->max[axis], lo[axis], width, bins)] += 1u;
         }
-        qsort(mins, n, sizeof *mins, kdrt__float_order);
-        qsort(maxs, n, sizeof *maxs, kdrt__float_order);
-        while (below < n || ended < n) {
-            /* The next face in order; every box starting before it is below, every box ending
-               after it above. */
-            const float p = ended == n || (below < n && mins[below] < maxs[ended]) ? mins[below]
-                                                                                  : maxs[ended];
+        for (k = 1; k < bins; ++k) {
+            /* The plane between bins k - 1 and k: the boxes starting in a bin before it lie below
+               it, those ending in one no longer above (as far as the bins tell: the split itself
+               is exact). */
+            const float p = (float)(lo[axis] + width * k);
             float clo[3], chi[3];
             double cost;
-            while (below < n && mins[below] < p) ++below;
-            while (ended < n && maxs[ended] <= p) ++ended;
-            if (!(p > lo[axis] && p < hi[axis])) {
-                if (below < n && mins[below] == p) ++below; /* step past p */
-                continue;
-            }
+            below += starts[k - 1], ended += ends[k - 1];
+            if (!(p > lo[axis] && p < hi[axis])) continue;
             memcpy(clo, lo, sizeof clo), memcpy(chi, hi, sizeof chi);
             chi[axis] = p;
             cost = kdrt__half_area(lo, chi) * below;
@@ -4010,7 +4013,6 @@ static uint32_t kdrt__level_plane(kdrt__level_builder *b, const uint32_t *items,
             cost = KDRT__LEVEL_TRAVERSAL_COST + KDRT__LEVEL_INSTANCE_COST * cost / area;
             if (cost < best && below + (n - ended) <= n + b->extra_refs)
                 best = cost, best_axis = axis, *split = p;
-            if (below < n && mins[below] == p) ++below;
         }
     }
     return best_axis;
@@ -4074,12 +4076,7 @@ static kdrt_result kdrt__build_level(const kdrt_allocator *a, const kdrt__instan
     b.allocator = a, b.instances = instances;
     b.level.bounds = kdrt_aabb_empty();
     items = (uint32_t *)kdrt__alloc(a, (size_t)n * sizeof(uint32_t));
-    b.keys = (float *)kdrt__alloc(a, 2 * (size_t)n * sizeof(float));
-    if (!items || !b.keys) {
-        kdrt__free(a, items);
-        kdrt__free(a, b.keys);
-        return KDRT_ERROR_OUT_OF_MEMORY;
-    }
+    if (!items) return KDRT_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < n; ++i)
         if (instances[i].box.min[0] <= instances[i].box.max[0]) {
             items[count++] = i;
@@ -4091,7 +4088,6 @@ static kdrt_result kdrt__build_level(const kdrt_allocator *a, const kdrt__instan
     if (count == 0) r = KDRT_SUCCESS; /* no nodes: every ray misses the instances */
     else r = kdrt__level_node(&b, items, count, b.level.bounds.min, b.level.bounds.max, 0);
     kdrt__free(a, items);
-    kdrt__free(a, b.keys);
     if (r != KDRT_SUCCESS) {
         kdrt__free(a, b.level.nodes);
         kdrt__free(a, b.level.refs);
