@@ -974,6 +974,18 @@ static float kdrt__next_up(float x)
 }
 static float kdrt__next_down(float x) { return -kdrt__next_up(-x); }
 
+/* x rounded to a float no greater (up: no smaller). */
+static float kdrt__float_down(double x)
+{
+    float f = (float)x;
+    return (double)f > x ? kdrt__next_down(f) : f;
+}
+static float kdrt__float_up(double x)
+{
+    float f = (float)x;
+    return (double)f < x ? kdrt__next_up(f) : f;
+}
+
 /* c = a x b, in the precision of the inputs; c must not be a or b. */
 static void kdrt__cross(const double a[3], const double b[3], double c[3])
 {
@@ -1044,6 +1056,7 @@ static void kdrt__load_mesh_triangle(const kdrt_triangles *m, uint32_t tri, floa
 static const kdrt__part *kdrt__part_of(const kdrt__meshes *m, uint32_t tri)
 {
     uint32_t lo = 0, hi = m->count - 1u;
+    if (m->count == 1) return m->parts; /* every kdrt_tree_build() tree: no search */
     while (lo < hi) {
         uint32_t mid = lo + (hi - lo + 1u) / 2u;
         if (m->parts[mid].first <= tri) lo = mid;
@@ -1055,7 +1068,7 @@ static const kdrt__part *kdrt__part_of(const kdrt__meshes *m, uint32_t tri)
 /* The corners of the tree's triangle number tri (checked by the build). */
 static void kdrt__load_triangle(const kdrt__meshes *m, uint32_t tri, float p[3][3])
 {
-    const kdrt__part *part = m->count == 1 ? m->parts : kdrt__part_of(m, tri);
+    const kdrt__part *part = kdrt__part_of(m, tri);
     kdrt__load_mesh_triangle(&part->mesh, tri - part->first, p);
 }
 
@@ -1491,9 +1504,7 @@ static int kdrt__polygon_box(double (*pts)[3], int n, const float blo[3], const 
             if (pts[j][a] < l) l = pts[j][a];
             if (pts[j][a] > h) h = pts[j][a];
         }
-        lo[a] = (float)l, hi[a] = (float)h;
-        if ((double)lo[a] > l) lo[a] = kdrt__next_down(lo[a]); /* round outwards */
-        if ((double)hi[a] < h) hi[a] = kdrt__next_up(hi[a]);
+        lo[a] = kdrt__float_down(l), hi[a] = kdrt__float_up(h); /* round outwards */
         if (lo[a] < blo[a]) lo[a] = blo[a];
         if (hi[a] > bhi[a]) hi[a] = bhi[a];
         if (lo[a] > hi[a]) return 0;
@@ -2791,7 +2802,7 @@ static void kdrt__prepare_range(void *data, uint32_t chunk)
     p->first_error[chunk] = KDRT_SUCCESS;
     for (tri = kdrt__chunk_start(p->m->triangles, chunk); tri < end; ++tri) {
         float *lo = p->boxes + 3 * (size_t)tri, *hi = lo + 3 * count, *centroid = hi + 3 * count;
-        const kdrt__part *part = p->m->count == 1 ? p->m->parts : kdrt__part_of(p->m, tri);
+        const kdrt__part *part = kdrt__part_of(p->m, tri);
         kdrt_result r = kdrt__check_triangle(&part->mesh, tri - part->first, c);
         if (r != KDRT_SUCCESS) {
             if (p->first_error[chunk] == KDRT_SUCCESS) p->first_error[chunk] = r;
@@ -3102,13 +3113,28 @@ KDRT_API kdrt_aabb kdrt_tree_bounds(const kdrt_tree *tree)
 /* ==== intersection tests ==== */
 
 /* A candidate on the tree's triangle number tri as the caller knows it: its geometry's ID, the
-   instance's, and its index within its mesh. */
-static void kdrt__name_hit(const kdrt__rules *r, uint32_t tri, kdrt_hit *hit)
+   instance's, and its index within its mesh; returns the mesh's part. */
+static const kdrt__part *kdrt__name_hit(const kdrt__rules *r, uint32_t tri, kdrt_hit *hit)
 {
-    const kdrt__part *part = r->meshes->count == 1 ? r->meshes->parts : kdrt__part_of(r->meshes, tri);
+    const kdrt__part *part = kdrt__part_of(r->meshes, tri);
     hit->triangle = tri - part->first;
     hit->geometry = r->instance != KDRT_INVALID_ID ? r->instance : part->id;
     hit->instance = r->instance;
+    return part;
+}
+
+/* A miss, as the queries report it. */
+static void kdrt__miss(kdrt_hit *hit)
+{
+    hit->t = hit->u = hit->v = 0.0f;
+    hit->triangle = KDRT_INVALID_ID, hit->geometry = 0, hit->instance = KDRT_INVALID_ID;
+}
+
+/* A walk's bound: t, or a full list's last hit when that is nearer (list may be NULL). */
+static float kdrt__list_bound(const kdrt__hit_list *list, float t)
+{
+    if (!list || list->count < list->capacity) return t;
+    return list->hits[list->count - 1u].t < t ? list->hits[list->count - 1u].t : t;
 }
 
 /* The scene's order of hits: t, then geometry ID, then triangle. */
@@ -3142,14 +3168,12 @@ static int kdrt__keep_hit(kdrt__hit_list *list, kdrt_hit *bound, const kdrt_hit 
     return 1;
 }
 
-/* Whether the rules count the candidate (named): its geometry seen by the ray's mask, its face
-   not culled, and its filter says yes. */
-static int kdrt__counts(const kdrt__rules *r, uint32_t tri, const kdrt_hit *candidate, int front)
+/* Whether the rules count the candidate (named, on the mesh part): its geometry seen by the
+   ray's mask, its face not culled, and its filter says yes. */
+static int kdrt__counts(const kdrt__rules *r, const kdrt__part *part, const kdrt_hit *candidate,
+                        int front)
 {
-    if (r->test_mask) {
-        const kdrt__part *part = kdrt__part_of(r->meshes, tri);
-        if (!(part->mask & r->mask)) return 0;
-    }
+    if (r->test_mask && !(part->mask & r->mask)) return 0;
     if (r->flags & (front ? KDRT_QUERY_CULL_FRONT_FACES : KDRT_QUERY_CULL_BACK_FACES)) return 0;
     return !r->filter || r->filter(r->user, r->ray, candidate) != 0;
 }
@@ -3195,8 +3219,8 @@ KDRT__NOINLINE static int kdrt__accept_ruled(kdrt_hit *best, uint32_t tri, float
     if (s->list ? !kdrt__nearer(best, 0u, t, u, v, s) : !kdrt__nearer(best, tri, t, u, v, s))
         return 0;
     candidate.t = t, candidate.u = u, candidate.v = v;
-    kdrt__name_hit(s->rules, tri, &candidate);
-    if (!kdrt__counts(s->rules, tri, &candidate, front)) return 0;
+    if (!kdrt__counts(s->rules, kdrt__name_hit(s->rules, tri, &candidate), &candidate, front))
+        return 0;
     if (s->list) return kdrt__keep_hit(s->list, best, &candidate);
     best->t = t, best->u = u, best->v = v, best->triangle = tri;
     return 1;
@@ -3533,15 +3557,13 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     const int ruled = rules != NULL;
 
     KDRT_ASSERT(!list || rules);
-    best->t = 0.0f, best->u = best->v = 0.0f, best->triangle = KDRT_INVALID_ID;
-    best->geometry = 0, best->instance = KDRT_INVALID_ID;
+    kdrt__miss(best);
     memset(tested, 0xFF, sizeof tested);
     if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
     best->t = s.tmax;
     s.list = list; /* best is then the bound: the list's last hit once it is full */
     s.rules = rules;
-    if (list && list->count == list->capacity && list->hits[list->count - 1u].t < best->t)
-        best->t = list->hits[list->count - 1u].t; /* full from an earlier walk (scenes) */
+    best->t = kdrt__list_bound(list, best->t); /* full from an earlier walk (scenes) */
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
@@ -3618,13 +3640,6 @@ static const kdrt__rules *kdrt__rules_for(const kdrt_query *query, const kdrt_ra
     storage->meshes = &tree->meshes;
     storage->instance = instance;
     return storage;
-}
-
-/* A miss, as the queries report it. */
-static void kdrt__miss(kdrt_hit *hit)
-{
-    hit->t = hit->u = hit->v = 0.0f;
-    hit->triangle = KDRT_INVALID_ID, hit->geometry = 0, hit->instance = KDRT_INVALID_ID;
 }
 
 /* The nearest hit, for kdrt_intersect and its _counted form; inlined as the walk is, so that
@@ -3877,18 +3892,6 @@ KDRT_API kdrt_geometry kdrt_instance_geometry(uint32_t id, const kdrt_tree *tree
     g.tree = tree;
     if (transform) memcpy(g.transform, transform, sizeof g.transform);
     return g;
-}
-
-/* x rounded to a float no greater (up: no smaller). */
-static float kdrt__float_down(double x)
-{
-    float f = (float)x;
-    return (double)f > x ? kdrt__next_down(f) : f;
-}
-static float kdrt__float_up(double x)
-{
-    float f = (float)x;
-    return (double)f < x ? kdrt__next_up(f) : f;
 }
 
 /* An instance of tree placed by transform: KDRT_ERROR_INVALID_TRANSFORM for a NaN or infinite
@@ -4328,6 +4331,14 @@ static void kdrt__object_ray(const kdrt__instance *in, const kdrt_ray *ray, floa
     out->tmax = tmax;
 }
 
+/* A nearest hit of the scene's mesh tree (a tree-wide triangle number) named as the caller
+   knows it: the mesh's geometry ID and its own triangle index. */
+static void kdrt__name_mesh_hit(const kdrt_tree *meshes, kdrt_hit *hit)
+{
+    const kdrt__part *part = kdrt__part_of(&meshes->meshes, hit->triangle);
+    hit->triangle -= part->first, hit->geometry = part->id;
+}
+
 /* The walk of the top level: each instance the ray's range reaches and its mask lets through is
    walked in its own space. Nearest hit: *best holds the hit so far (or a miss whose t is the
    range's end) and takes nearer ones; any_hit: 1 on the first; list: its hits go there. */
@@ -4369,8 +4380,7 @@ static int kdrt__walk_instances(const kdrt_scene *sc, const kdrt_ray *ray, const
                                     &storage);
             kdrt__object_ray(in, ray, best->t, &object);
             if (!kdrt__walk(in->tree, &object, rules, &h, any_hit, list)) {
-                if (list && list->count == list->capacity)
-                    best->t = list->hits[list->count - 1u].t; /* the list's bound */
+                best->t = kdrt__list_bound(list, best->t);
                 continue;
             }
             if (any_hit) return 1;
@@ -4399,12 +4409,11 @@ static int kdrt__scene_query(const kdrt_scene *sc, const kdrt_ray *ray, const kd
             kdrt__rules_for(query, ray, sc->meshes, KDRT_INVALID_ID, 0, list != NULL, &storage);
         kdrt_hit h;
         if (kdrt__walk(sc->meshes, ray, rules, &h, any_hit, list)) {
-            const kdrt__part *part = kdrt__part_of(&sc->meshes->meshes, h.triangle);
             if (any_hit) return 1;
-            h.triangle -= part->first, h.geometry = part->id;
+            kdrt__name_mesh_hit(sc->meshes, &h);
             *best = h, found = 1;
-        } else if (list && list->count == list->capacity) {
-            best->t = list->hits[list->count - 1u].t;
+        } else {
+            best->t = kdrt__list_bound(list, best->t);
         }
     }
     if (sc->instance_count) found |= kdrt__walk_instances(sc, ray, query, best, any_hit, list);
@@ -4423,10 +4432,8 @@ KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
     if (scene->meshes && !scene->instance_count &&
         (!query || (!query->flags && !query->filter && query->mask && scene->meshes->masks_full))) {
         /* Static meshes, every hit counting: the one tree's query, its hit named. */
-        const kdrt__part *part;
         if (!kdrt_intersect(scene->meshes, ray, hit)) return 0;
-        part = kdrt__part_of(&scene->meshes->meshes, hit->triangle);
-        hit->triangle -= part->first, hit->geometry = part->id;
+        kdrt__name_mesh_hit(scene->meshes, hit);
         return 1;
     }
     return kdrt__scene_query(scene, ray, query, hit, 0, NULL);

@@ -777,6 +777,18 @@ void check_judged(const Judged &j, double ambiguous_share) {
     }
 }
 
+// Every hit counting: the scene's nearest, any and k nearest hits judged against refs, at most 2%
+// of the answers ambiguous.
+Judged judge_every_hit(const kdrt_scene *scene, const World &w, const std::vector<kdrt_ray> &rays,
+                       const std::vector<std::vector<RefHit>> &refs) {
+    const Rules all{"every hit", 0, kAllBits, {}};
+    SceneQueries q(scene, all, &w);
+    Judged j;
+    judge_queries(q, w, all, rays, refs, j);
+    check_judged(j, 0.02);
+    return j;
+}
+
 // Rays at points well inside triangles (barycentrics at least 0.05) of the given geometries, from
 // either side, at least 11 degrees off the triangle's plane, direction lengths from 0.3 to 3:
 // every one must hit something.
@@ -1069,12 +1081,7 @@ TEST_CASE("scene: instances under every kind of transform, against the world-spa
         const std::vector<kdrt_ray> random = kt::random_rays(f.world.box(), 150, 8);
         rays.insert(rays.end(), random.begin(), random.end());
         const std::vector<std::vector<RefHit>> refs = reference_hits(f.world, rays);
-        const Rules all{"every hit", 0, kAllBits, {}};
-        SceneQueries q(scene.get(), all, &f.world);
-        Judged j;
-        judge_queries(q, f.world, all, rays, refs, j);
-        check_judged(j, 0.02);
-        total.add(j);
+        total.add(judge_every_hit(scene.get(), f.world, rays, refs));
 
         size_t misses = 0, bad_ids = 0, surface_wrong = 0, kernels_differ = 0;
         std::string first_surface;
@@ -1149,11 +1156,7 @@ TEST_CASE("scene: meshes and overlapping instances of two trees, nearest, any an
     CHECK(box_fits(kdrt_scene_bounds(scene.get()), f.world.box(), f.world.loose_box(), 1e-4));
     const std::vector<kdrt_ray> rays = mixed_rays(f, 1200, 800, 21);
     const std::vector<std::vector<RefHit>> refs = reference_hits(f.world, rays);
-    const Rules all{"every hit", 0, kAllBits, {}};
-    SceneQueries q(scene.get(), all, &f.world);
-    Judged j;
-    judge_queries(q, f.world, all, rays, refs, j);
-    check_judged(j, 0.02);
+    const Judged j = judge_every_hit(scene.get(), f.world, rays, refs);
     WARN("meshes and instances, " << rays.size() << " rays, against the world brute force:\n  " << j.summary());
 
     size_t hits = 0, on_instances = 0, surface_wrong = 0, kernels_differ = 0, multiple = 0;
@@ -1444,11 +1447,7 @@ TEST_CASE("scene: moving instances takes effect at the commit, and only then", "
         const std::vector<kdrt_ray> at = aimed_rays(w, {10, 20}, 300, 42);
         rays.insert(rays.end(), at.begin(), at.end());
         CHECK(differences(trace(scene.get(), rays), trace(fresh.get(), rays)) == 0);
-        const Rules all{"every hit", 0, kAllBits, {}};
-        SceneQueries q(scene.get(), all, &w);
-        Judged j;
-        judge_queries(q, w, all, rays, reference_hits(w, rays), j);
-        check_judged(j, 0.02);
+        judge_every_hit(scene.get(), w, rays, reference_hits(w, rays));
     };
     compare_with_fresh(moved, beside);
 
