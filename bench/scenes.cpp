@@ -25,10 +25,6 @@ void mesh_box(const common::Mesh &mesh, double lo[3], double hi[3]) {
         for (int a = 0; a < 3; ++a) lo[a] = hi[a] = 0;
 }
 
-uint32_t corner(const common::Mesh &mesh, uint32_t triangle, int k) {
-    return mesh.indices.empty() ? 3 * triangle + uint32_t(k) : mesh.indices[3 * size_t(triangle) + size_t(k)];
-}
-
 // The mesh's vertices merged per cell of a grid of `cells` cubes along its largest side.
 common::Mesh cluster(const common::Mesh &mesh, uint32_t cells) {
     double lo[3], hi[3];
@@ -56,7 +52,7 @@ common::Mesh cluster(const common::Mesh &mesh, uint32_t cells) {
     for (size_t i = 0; i < sums.size(); ++i) out.positions.push_back(float(sums[i] / counts[i / 3]));
     std::set<std::array<uint32_t, 3>> kept;
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-        const std::array<uint32_t, 3> c = {remap[corner(mesh, t, 0)], remap[corner(mesh, t, 1)], remap[corner(mesh, t, 2)]};
+        const std::array<uint32_t, 3> c = {remap[mesh.vertex(t, 0)], remap[mesh.vertex(t, 1)], remap[mesh.vertex(t, 2)]};
         if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) continue;
         std::array<uint32_t, 3> sorted = c;
         std::sort(sorted.begin(), sorted.end());
@@ -76,7 +72,7 @@ void append_placed(common::Mesh &world, const common::Mesh &mesh, const double m
             world.positions.push_back(float(m[3 * i] * p[0] + m[3 * i + 1] * p[1] + m[3 * i + 2] * p[2] + t[i]));
     }
     for (uint32_t tri = 0; tri < mesh.triangle_count(); ++tri)
-        for (int k = 0; k < 3; ++k) world.indices.push_back(base + corner(mesh, tri, k));
+        for (int k = 0; k < 3; ++k) world.indices.push_back(base + mesh.vertex(tri, k));
 }
 
 // The geometry IDs of a layout whose meshes are runs of frame.geometry: the first triangle of

@@ -32,10 +32,7 @@ struct EveryTriangleTree {
     explicit EveryTriangleTree(const common::Mesh &mesh, kdrt_intersector intersector = KDRT_INTERSECTOR_WATERTIGHT) {
         for (uint32_t i = 0; i < mesh.triangle_count(); ++i) {
             double p[3][3];
-            for (int c = 0; c < 3; ++c) {
-                const uint32_t vertex = mesh.indices.empty() ? 3 * i + c : mesh.indices[3 * size_t(i) + c];
-                for (int a = 0; a < 3; ++a) p[c][a] = mesh.positions[3 * size_t(vertex) + a];
-            }
+            mesh.corners(i, p);
             const double e1[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
             const double e2[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
             normals.push_back({e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]});

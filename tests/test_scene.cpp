@@ -462,8 +462,8 @@ public:
             first_.push_back(mesh_.triangle_count());
             const uint32_t base = mesh_.vertex_count();
             mesh_.positions.insert(mesh_.positions.end(), p.mesh->positions.begin(), p.mesh->positions.end());
-            for (uint32_t i = 0; i < 3 * p.mesh->triangle_count(); ++i)
-                mesh_.indices.push_back(base + (p.mesh->indices.empty() ? i : p.mesh->indices[i]));
+            for (uint32_t t = 0; t < p.mesh->triangle_count(); ++t)
+                for (int k = 0; k < 3; ++k) mesh_.indices.push_back(base + p.mesh->vertex(t, k));
         }
         tree_ = kt::build(mesh_, 0, kt::kBuilders[0]);
     }

@@ -42,7 +42,7 @@ kdrt_triangles Mesh::view() const {
 
 void Mesh::corners(uint32_t triangle, double p[3][3]) const {
     for (int k = 0; k < 3; ++k) {
-        size_t vtx = indices.empty() ? size_t(triangle) * 3 + k : indices[size_t(triangle) * 3 + k];
+        const size_t vtx = vertex(triangle, k);
         for (int a = 0; a < 3; ++a) p[k][a] = positions[vtx * 3 + a];
     }
 }

@@ -18,6 +18,10 @@ struct Mesh {
     uint32_t vertex_count() const { return uint32_t(positions.size() / 3); }
     uint32_t triangle_count() const { return uint32_t(indices.empty() ? positions.size() / 9 : indices.size() / 3); }
     kdrt_triangles view() const;  // borrows this mesh's vectors
+    // The vertex at corner k (0..2) of a triangle, soup or indexed.
+    uint32_t vertex(uint32_t triangle, int k) const {
+        return indices.empty() ? 3 * triangle + uint32_t(k) : indices[3 * size_t(triangle) + size_t(k)];
+    }
     void corners(uint32_t triangle, double p[3][3]) const;
 };
 

@@ -283,9 +283,8 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
         const MeshData &md = meshes[size_t(hit.index)];
         const uint32_t t = hit.mesh_hit.triangle;
         const double b1 = hit.mesh_hit.u, b2 = hit.mesh_hit.v, b0 = 1 - b1 - b2;
-        const auto vertex = [&](int k) { return mesh.indices.empty() ? 3 * t + uint32_t(k) : mesh.indices[3 * size_t(t) + size_t(k)]; };
-        const Vec3 n = normalize(b0 * md.vertex_normals[vertex(0)] + b1 * md.vertex_normals[vertex(1)] +
-                                 b2 * md.vertex_normals[vertex(2)]);
+        const Vec3 n = normalize(b0 * md.vertex_normals[mesh.vertex(t, 0)] + b1 * md.vertex_normals[mesh.vertex(t, 1)] +
+                                 b2 * md.vertex_normals[mesh.vertex(t, 2)]);
         if (dot(n, n) > 0) hit.shading_normal = n;
     }
     return true;
@@ -542,7 +541,7 @@ bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error,
             const Vec3 a{p[0][0], p[0][1], p[0][2]}, b{p[1][0], p[1][1], p[1][2]}, c{p[2][0], p[2][1], p[2][2]};
             const Vec3 face = cross(b - a, c - a);
             for (int k = 0; k < 3; ++k) {
-                const uint32_t v = mesh.indices.empty() ? 3 * t + uint32_t(k) : mesh.indices[3 * size_t(t) + size_t(k)];
+                const uint32_t v = mesh.vertex(t, k);
                 md.vertex_normals[v] = md.vertex_normals[v] + face;
             }
             if (face.x == 0 && face.y == 0 && face.z == 0) continue;
@@ -769,7 +768,8 @@ std::vector<TreeBox> Renderer::tree_boxes(uint32_t max_depth) const
         const common::Mesh &mesh = mi.mesh;
         const uint32_t base = uint32_t(positions.size() / 3);
         positions.insert(positions.end(), mesh.positions.begin(), mesh.positions.end());
-        for (uint32_t i = 0; i < 3 * mesh.triangle_count(); ++i) indices.push_back(base + (mesh.indices.empty() ? i : mesh.indices[i]));
+        for (uint32_t t = 0; t < mesh.triangle_count(); ++t)
+            for (int k = 0; k < 3; ++k) indices.push_back(base + mesh.vertex(t, k));
     }
     kdrt_triangles all = {};
     all.positions = positions.data();
