@@ -259,7 +259,14 @@
      instancing tracer): within float rounding of the world-space answer, not bit for bit. The
      direction is not renormalised, so t is the same parameter in both spaces and hits from
      anywhere in the scene compare directly. An instance's world box is its tree's box
-     transformed, widened by 2^-20 of its extent and position for the rounding.
+     transformed, widened by 2^-20 of its extent and position for the rounding. That box must be
+     finite: an instance whose box would reach beyond float's range (a tree 1e10 across under a
+     scale of 1e30, or one whose corners lie within 2^-20 of the largest float) is refused with
+     KDRT_ERROR_INVALID_TRANSFORM, by kdrt_scene_build() (report naming it) and by
+     kdrt_scene_set_transform() (the scene unchanged), so the top level only ever bins and clips
+     finite boxes. A world ray whose trip into an instance's space leaves float's range (its
+     origin beyond 3.4e38 there, as under a scale of 1e-10 from 1e30 away) misses that instance,
+     as any ray with an infinite origin misses (QUERIES AND GUARANTEES).
      Ownership: the meshes' buffers and the instances' trees must stay alive and unchanged until
      kdrt_scene_free(); an instance of a freed tree is the caller's error, which kdrt cannot
      detect. Threads: queries as on trees (const scene, nothing allocated, any number at once);
@@ -364,7 +371,8 @@ typedef enum kdrt_result {
     KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
     KDRT_ERROR_INVALID_IOR,        /* an index of refraction that is NaN, infinite, 0 or negative */
     KDRT_ERROR_INVALID_GEOMETRY_ID, /* a scene's geometry ID used twice, or KDRT_INVALID_ID */
-    KDRT_ERROR_INVALID_TRANSFORM   /* an instance transform that is singular, NaN or infinite */
+    KDRT_ERROR_INVALID_TRANSFORM   /* an instance transform that is singular, NaN or infinite,
+                                      or that carries its tree's box beyond float's range */
 } kdrt_result;
 
 typedef struct kdrt_aabb {
@@ -590,7 +598,11 @@ typedef enum kdrt_query_flags {
    it is taken: nonzero to take it, 0 to go on as if the triangle were not there. It may be called
    for a triangle more than once and in any order, and only for candidates nearer than the hits
    taken so far: it must answer the same for the same candidate, and it runs on the querying
-   thread. */
+   thread. It may run other queries of its own, on this tree or scene or any other (a query
+   changes nothing it walks); it must not free, rebuild, move or commit what is being queried
+   (kdrt_tree_free(), kdrt_scene_set_transform(), kdrt_scene_commit(), ...), nor change the
+   mesh buffers, and it must return: kdrt does not unwind a longjmp or a C++ exception through
+   its frames (they hold nothing to release, but the query's answer is then undefined). */
 typedef int (*kdrt_filter_fn)(void *user, const kdrt_ray *ray, const kdrt_hit *candidate);
 
 typedef struct kdrt_query {
@@ -674,7 +686,8 @@ typedef struct kdrt_geometry {
        the tree goes to x_i = R_i0 p_0 + R_i1 p_1 + R_i2 p_2 + t_i, with transform[4 i + j] = R_ij
        and transform[4 i + 3] = t_i. Finite and invertible (|det R| at least 2^-40 times the
        product of its rows' lengths, which is 1 for any rotation and scale): rotations, scales
-       (uniform or not), mirrors and shears are all fine. */
+       (uniform or not), mirrors and shears are all fine. The tree's box carried into the world
+       and widened (SCENES) must stay within float's range, below about 3.4e38. */
     float transform[12];
 } kdrt_geometry;
 
@@ -1142,7 +1155,7 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
     case KDRT_ERROR_INVALID_GEOMETRY_ID:
         return "a scene's geometry ID is used twice, is KDRT_INVALID_ID, or names no instance";
     case KDRT_ERROR_INVALID_TRANSFORM:
-        return "an instance transform is singular or has a NaN or infinite entry";
+        return "an instance transform is singular, has a NaN or infinite entry, or carries its tree beyond float's range";
     }
     return "unknown kdrt_result";
 }
@@ -3942,6 +3955,9 @@ static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float trans
             double pad = 9.5367431640625e-7 /* 2^-20 */ * (hi[i] - lo[i] + (fabs(lo[i]) > fabs(hi[i]) ? fabs(lo[i]) : fabs(hi[i])));
             in->box.min[i] = kdrt__float_down(lo[i] - pad);
             in->box.max[i] = kdrt__float_up(hi[i] + pad);
+            /* A box beyond float's range has no finite planes to bin or clip by: refused. */
+            if (!kdrt__finite(in->box.min[i]) || !kdrt__finite(in->box.max[i]))
+                return KDRT_ERROR_INVALID_TRANSFORM;
         }
     }
     return KDRT_SUCCESS;

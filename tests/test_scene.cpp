@@ -1678,6 +1678,54 @@ TEST_CASE("scene: kdrt_scene_build refuses bad input, names the geometry and fre
     CHECK(counter.wrong_user == 0);
 }
 
+TEST_CASE("scene: an instance whose world box leaves float's range is refused, built or moved", "[scene][errors]") {
+    // The top level bins and clips instances' world boxes, which must be finite: a tree 1e10
+    // across under a scale of 1e30 reaches 1e40; corners within 2^-20 of the largest float are
+    // widened past it. Both are refused with the instance named, and a move there changes nothing.
+    Mesh wide;
+    wide.positions = {-1e10f, -1e10f, 0, 1e10f, -1e10f, 0, 0, 1e10f, 1e10f};
+    const kt::TreePtr tree = kt::build(wide, 4);
+    const float big[12] = {1e30f, 0, 0, 0, 0, 1e30f, 0, 0, 0, 0, 1e30f, 0};
+    const float small[12] = {1e-10f, 0, 0, 5, 0, 1e-10f, 0, 0, 0, 0, 1e-10f, 0};
+    const float large[12] = {1e27f, 0, 0, 0, 0, 1e27f, 0, 0, 0, 0, 1e27f, 0};  // 1e37 across: fine
+    kdrt_build_report report;
+    kdrt_scene *scene = poison();
+    const kdrt_geometry overflowing[3] = {kdrt_instance_geometry(1, tree.get(), big), kdrt_instance_geometry(2, tree.get(), big),
+                                          kdrt_instance_geometry(3, tree.get(), small)};
+    CHECK(kdrt_scene_build(overflowing, 3, nullptr, &scene, &report) == KDRT_ERROR_INVALID_TRANSFORM);
+    CHECK(scene == nullptr);
+    CHECK(report.invalid_geometry == 1);
+
+    Mesh edge;  // corners at the largest float: finite, but its widened box is not
+    const float m = std::numeric_limits<float>::max();
+    edge.positions = {-m, -m, 0, m, -m, 0, 0, m, 1};
+    const kt::TreePtr edge_tree = kt::build(edge, 4);
+    const kdrt_geometry at_the_edge[2] = {kdrt_instance_geometry(7, edge_tree.get(), nullptr),
+                                          kdrt_instance_geometry(8, edge_tree.get(), nullptr)};
+    scene = poison();
+    CHECK(kdrt_scene_build(at_the_edge, 2, nullptr, &scene, &report) == KDRT_ERROR_INVALID_TRANSFORM);
+    CHECK(scene == nullptr);
+    CHECK(report.invalid_geometry == 7);
+
+    // Within range the same tree builds, its bounds finite, and a move beyond is refused.
+    const std::vector<kdrt_geometry> fine = {kdrt_instance_geometry(1, tree.get(), large), kdrt_instance_geometry(3, tree.get(), small)};
+    const ScenePtr ok = build_scene(fine);
+    const kdrt_aabb bounds = kdrt_scene_bounds(ok.get());
+    for (int a = 0; a < 3; ++a) {
+        CHECK(std::isfinite(bounds.min[a]));
+        CHECK(std::isfinite(bounds.max[a]));
+    }
+    kdrt_ray down = {{5, 0, 1}, 0, {0, 0, -1}, kInf};  // through instance 3 at z = 0.1
+    kdrt_hit hit;
+    REQUIRE(kdrt_scene_intersect(ok.get(), &down, nullptr, &hit));
+    CHECK(hit.geometry == 3);
+    CHECK(kdrt_scene_set_transform(ok.get(), 1, big) == KDRT_ERROR_INVALID_TRANSFORM);
+    CHECK(kdrt_scene_commit(ok.get()) == KDRT_SUCCESS);
+    CHECK(std::memcmp(kdrt_scene_geometry(ok.get(), 1)->transform, large, sizeof large) == 0);
+    CHECK(kdrt_scene_intersect(ok.get(), &down, nullptr, &hit));
+    CHECK(hit.geometry == 3);
+}
+
 TEST_CASE("scene: kdrt_mesh_geometry and kdrt_instance_geometry fill in the defaults", "[scene]") {
     const Mesh m = kt::grid(2, 2, 1);
     const kdrt_triangles view = m.view();
