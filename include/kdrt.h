@@ -534,7 +534,8 @@ KDRT_API kdrt_aabb kdrt_aabb_union(kdrt_aabb a, kdrt_aabb b);
 KDRT_API kdrt_result kdrt_aabb_of_triangles(const kdrt_triangles *mesh, kdrt_aabb *out_box,
                                             kdrt_build_report *report);
 /* 1 when the ray's range [max(tmin, 0), tmax] meets the closed box; the overlap goes to
-   *t_enter and *t_exit (either may be NULL). Zero and negative-zero direction components are
+   *t_enter and *t_exit (either may be NULL), each widened by a bound on its rounding error, so
+   that no point of the box is left out. Zero and negative-zero direction components are
    exact: a ray parallel to a slab is inside it when its origin is, boundary included. NaN in the
    ray or the box gives 0. */
 KDRT_API int kdrt_aabb_intersect_ray(const kdrt_aabb *box, const kdrt_ray *ray, float *t_enter,
@@ -1301,8 +1302,10 @@ static int kdrt__clip_to_box(const kdrt_aabb *box, const kdrt__ray_setup *s, flo
         }
         ta = (box->min[a] - s->org[a]) * s->inv_dir[a];
         tb = (box->max[a] - s->org[a]) * s->inv_dir[a];
-        tnear = ta < tb ? ta : tb;
-        tfar = (ta < tb ? tb : ta) * (1.0f + KDRT__T_SLACK); /* conservative exit (pbrt-v3) */
+        /* Conservative entry and exit (pbrt-v3): a hit on a flat box's triangle may lie a few
+           ulps before the rounded entry. */
+        tnear = (ta < tb ? ta : tb) * (1.0f - KDRT__T_SLACK);
+        tfar = (ta < tb ? tb : ta) * (1.0f + KDRT__T_SLACK);
         if (tnear > enter) enter = tnear;
         if (tfar < exit) exit = tfar;
     }
@@ -3639,7 +3642,7 @@ static const kdrt__rules *kdrt__rules_for(const kdrt_query *query, const kdrt_ra
                                           int force, kdrt__rules *storage)
 {
     uint32_t flags = query ? query->flags : 0u;
-    const int test_mask = query && !tree->masks_full;
+    const int test_mask = !tree->masks_full; /* NULL is kdrt_default_query(): every bit */
     if (!flags && !(query && query->filter) && !test_mask && !force) return NULL;
     if (mirrored) /* the world sees the other face */
         flags = (flags & KDRT_QUERY_CULL_BACK_FACES ? (uint32_t)KDRT_QUERY_CULL_FRONT_FACES : 0u) |
@@ -3741,13 +3744,26 @@ KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
 
 /* ==== secondary rays ==== */
 
+/* An instance as the queries use it: the transform and its inverse in double, and the world
+   box its tree occupies. */
+typedef struct kdrt__instance {
+    const kdrt_tree *tree;
+    double to_world[12];  /* [R | t], as kdrt_geometry.transform */
+    double to_object[9];  /* R^-1: object = R^-1 (world - t) */
+    kdrt_aabb box;        /* the tree's box carried into the world and widened; empty: no tree */
+    uint32_t id, mask;
+    int mirrored;         /* det R < 0: the world sees each triangle's other face */
+} kdrt__instance;
+
 /* The point at barycentrics (u, v) of the triangle with corners c, each first carried into the
-   world by to_world ([R | t], 3x4 row-major) unless it is NULL, and its unit geometric normal
+   world by the instance in unless it is NULL, and its unit geometric normal, the direction of
    (p1 - p0) x (p2 - p0) of the corners as placed, so that a mirror turns it with the winding.
-   Either output may be NULL. */
-static void kdrt__surface(float c[3][3], const double *to_world, float u, float v, float point[3],
+   Either output may be NULL. (Instances are the scenes' (SCENES); they are defined here for
+   this.) */
+static void kdrt__surface(float c[3][3], const kdrt__instance *in, float u, float v, float point[3],
                           float normal[3])
 {
+    const double *to_world = in ? in->to_world : NULL;
     double p[3][3], e1[3], e2[3], n[3], length;
     int a, k;
     for (k = 0; k < 3; ++k)
@@ -3766,7 +3782,19 @@ static void kdrt__surface(float c[3][3], const double *to_world, float u, float 
             lo = p[k][a] < lo ? p[k][a] : lo, hi = p[k][a] > hi ? p[k][a] : hi;
         if (point) point[a] = (float)(x < lo ? lo : (x > hi ? hi : x));
     }
-    kdrt__cross(e1, e2, n);
+    if (in) {
+        /* The tree's normal carried by the inverse transpose, turned where the transform mirrors
+           ((R a) x (R b) = det R R^-T (a x b)): the world corners' own cross product would lose
+           the triangle's shape to rounding far from the origin (a unit cube placed at 2e30). */
+        double m[3];
+        for (a = 0; a < 3; ++a) e1[a] = (double)c[1][a] - c[0][a], e2[a] = (double)c[2][a] - c[0][a];
+        kdrt__cross(e1, e2, m);
+        for (a = 0; a < 3; ++a)
+            n[a] = (in->mirrored ? -1.0 : 1.0) * (in->to_object[a] * m[0] + in->to_object[3 + a] * m[1] +
+                                                  in->to_object[6 + a] * m[2]);
+    } else {
+        kdrt__cross(e1, e2, n);
+    }
     length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (normal)
         for (a = 0; a < 3; ++a) normal[a] = length > 0.0 ? (float)(n[a] / length) : 0.0f;
@@ -3852,16 +3880,6 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
 
 /* ==== scenes: meshes in one tree, instances under a top-level tree ==== */
 
-/* An instance as the queries use it: the transform and its inverse in double, and the world
-   box its tree occupies. */
-typedef struct kdrt__instance {
-    const kdrt_tree *tree;
-    double to_world[12];  /* [R | t], as kdrt_geometry.transform */
-    double to_object[9];  /* R^-1: object = R^-1 (world - t) */
-    kdrt_aabb box;        /* the tree's box carried into the world and widened; empty: no tree */
-    uint32_t id, mask;
-    int mirrored;         /* det R < 0: the world sees each triangle's other face */
-} kdrt__instance;
 
 /* The top-level kd-tree: nodes as a tree's, a leaf's u.first indexing refs (instances). */
 typedef struct kdrt__level {
@@ -4247,14 +4265,13 @@ KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t 
         sc->meshes = kdrt__tree_new(&opt, &m);
         if (!sc->meshes) r = KDRT_ERROR_OUT_OF_MEMORY;
         else r = kdrt__build_tree(sc->meshes, &opt, report); /* frees it on failure */
-        if (r != KDRT_SUCCESS) {
-            sc->meshes = NULL;
-            if (report && report->invalid_triangle != KDRT_INVALID_ID) {
-                /* The tree numbers triangles across the meshes: name the mesh and its own. */
-                const kdrt__part *part = kdrt__part_of(&m, report->invalid_triangle);
-                report->invalid_triangle -= part->first;
-                report->invalid_geometry = part->id;
-            }
+        if (r != KDRT_SUCCESS) sc->meshes = NULL;
+        if (report && report->invalid_triangle != KDRT_INVALID_ID) {
+            /* The tree numbers triangles across the meshes: name the mesh and its own, for a
+               failure or the first triangle skipped. */
+            const kdrt__part *part = kdrt__part_of(&m, report->invalid_triangle);
+            report->invalid_triangle -= part->first;
+            report->invalid_geometry = part->id;
         }
     }
     if (r == KDRT_SUCCESS) r = kdrt__build_level(&sc->allocator, sc->instances, sc->instance_count,
@@ -4445,8 +4462,8 @@ KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
         kdrt__miss(hit);
         return 0;
     }
-    if (scene->meshes && !scene->instance_count &&
-        (!query || (!query->flags && !query->filter && query->mask && scene->meshes->masks_full))) {
+    if (scene->meshes && !scene->instance_count && scene->meshes->masks_full &&
+        (!query || (!query->flags && !query->filter && query->mask))) {
         /* Static meshes, every hit counting: the one tree's query, its hit named. */
         if (!kdrt_intersect(scene->meshes, ray, hit)) return 0;
         kdrt__name_mesh_hit(scene->meshes, hit);
@@ -4485,7 +4502,7 @@ KDRT_API int kdrt_scene_hit_surface(const kdrt_scene *scene, const kdrt_hit *hit
         if (!in || hit->geometry != hit->instance ||
             !kdrt__hit_corners(&in->tree->meshes.parts[0].mesh, hit->triangle, p))
             return 0;
-        kdrt__surface(p, in->to_world, hit->u, hit->v, point, normal);
+        kdrt__surface(p, in, hit->u, hit->v, point, normal);
         return 1;
     }
     e = kdrt__find_entry(scene, hit->geometry);

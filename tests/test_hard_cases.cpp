@@ -1158,3 +1158,36 @@ TEST_CASE("hard: scenes far from the origin", "[hard]") {
             CHECK(hit_count > rays.size() / 10);
         }
 }
+
+TEST_CASE("hard: a range ending at a hit's t still finds it, on a flat tree's box too", "[hard]") {
+    // One triangle in the plane y = 0.5: the tree's box is flat, and a ray's rounded entry into it
+    // can lie a few ulps past the triangle's own t. The walk's clip to the box is widened for
+    // that, so tmax = t (or any tmax past it) keeps the hit.
+    common::Mesh flat;
+    flat.positions = {-1.5f, 0.5f, 0.5f, 0.5f, 0.5f, -1.25f, 0.5f, 0.5f, 0.5f};
+    const kdrt_ray found = {{0x1.0a4fc8p+3f, 0x1.3dd608p+2f, -0x1.2p+4f}, 0, {-0x1.183b4cp+4f, -0x1.1dd60ap+3f, 0x1.26999ap+5f}, kInf};
+    common::Mesh sheet = kt::grid(8, 8, 2);  // flat in z, many leaves
+    std::vector<kdrt_ray> rays = kt::random_rays(kdrt_tree_bounds(kt::build(sheet, 0, KDRT_BUILDER_MEDIAN).get()), 20000, 77);
+    for (const kt::Builder &builder : kt::kBuilders)
+        for (uint32_t leaf : {0u, 2u, 4u})
+            for (uint32_t flags : {0u, uint32_t(KDRT_BUILD_SCALAR_KERNEL)}) {
+                INFO(builder.name << " leaf size " << leaf << " flags " << flags);
+                const kt::TreePtr one = kt::build(flat, leaf, builder, flags);
+                kdrt_hit hit, again;
+                REQUIRE(kdrt_intersect(one.get(), &found, &hit));
+                kdrt_ray bounded = found;
+                bounded.tmax = hit.t;
+                CHECK(kdrt_intersect(one.get(), &bounded, &again));
+                CHECK(again.t == hit.t);
+                bounded.tmax = std::nextafter(hit.t, kInf);
+                CHECK(kdrt_occluded(one.get(), &bounded));
+                const kt::TreePtr many = kt::build(sheet, leaf, builder, flags);
+                size_t lost = 0;
+                for (const kdrt_ray &r : rays) {
+                    if (!kdrt_intersect(many.get(), &r, &hit)) continue;
+                    bounded = r, bounded.tmax = hit.t;
+                    lost += !kdrt_intersect(many.get(), &bounded, &again) || again.t != hit.t || again.triangle != hit.triangle;
+                }
+                CHECK(lost == 0);
+            }
+}

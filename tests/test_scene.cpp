@@ -1726,6 +1726,57 @@ TEST_CASE("scene: an instance whose world box leaves float's range is refused, b
     CHECK(hit.geometry == 3);
 }
 
+TEST_CASE("scene: a skipped triangle is named by its mesh, a NULL query sees masks, far instances keep their normals", "[scene]") {
+    // A successful build that skips a bad triangle names it as a failed one would: the mesh's
+    // ID and its own index, not the mesh tree's number across the meshes.
+    Mesh a, b;
+    a.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    b.positions = {0, 0, 1, 1, 0, 1, 0, 1, 1, kNaN, 0, 1, 1, 0, 1, 0, 1, 1};
+    std::vector<kdrt_geometry> entries = {kdrt_mesh_geometry(5, nullptr), kdrt_mesh_geometry(9, nullptr)};
+    entries[0].mesh = a.view(), entries[1].mesh = b.view();
+    kdrt_build_options skip = kdrt_default_build_options();
+    skip.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+    kdrt_scene *raw = nullptr;
+    kdrt_build_report report;
+    REQUIRE(kdrt_scene_build(entries.data(), 2, &skip, &raw, &report) == KDRT_SUCCESS);
+    const ScenePtr skipped(raw);
+    CHECK(report.skipped_triangles == 1);
+    CHECK(report.invalid_geometry == 9);
+    CHECK(report.invalid_triangle == 1);
+
+    // A NULL query is kdrt_default_query(): a mesh of mask 0 is seen by neither.
+    entries[0].mask = 0;
+    entries.resize(1);
+    const ScenePtr masked = build_scene(entries);
+    const kdrt_ray down = {{0.25f, 0.25f, 1}, 0, {0, 0, -1}, kInf};
+    const kdrt_query plain = kdrt_default_query();
+    kdrt_hit hit, k[2];
+    for (const kdrt_query *q : {static_cast<const kdrt_query *>(nullptr), &plain}) {
+        INFO((q ? "kdrt_default_query()" : "NULL"));
+        CHECK_FALSE(kdrt_scene_intersect(masked.get(), &down, q, &hit));
+        CHECK_FALSE(kdrt_scene_occluded(masked.get(), &down, q));
+        CHECK(kdrt_scene_intersect_k(masked.get(), &down, q, k, 2) == 0);
+    }
+
+    // A small ball mirrored and placed at x = 2e30: its world corners lose its shape to rounding,
+    // but the normal is the tree's carried by the inverse transpose, unit length.
+    const Mesh cube = kt::sphere(4, 6, 1.0);
+    const kt::TreePtr tree = kt::build(cube, 4);
+    const float far_mirror[12] = {-1, 0, 0, 2e30f, 0, 1, 0, 0, 0, 0, 1, 0};
+    const ScenePtr far_away = build_scene({kdrt_instance_geometry(3, tree.get(), far_mirror)});
+    for (uint32_t t = 0; t < cube.triangle_count(); ++t) {
+        const kdrt_hit on = {0.0f, 0.25f, 0.25f, t, 3, 3};
+        float point[3], normal[3], object[3];
+        REQUIRE(kdrt_scene_hit_surface(far_away.get(), &on, point, normal));
+        REQUIRE(kdrt_hit_surface(tree.get(), &on, nullptr, object));
+        INFO("triangle " << t);
+        // Mirrored in x: the tree's normal with x negated, and turned with the winding.
+        CHECK(normal[0] == object[0]);
+        CHECK(normal[1] == -object[1]);
+        CHECK(normal[2] == -object[2]);
+    }
+}
+
 TEST_CASE("scene: kdrt_mesh_geometry and kdrt_instance_geometry fill in the defaults", "[scene]") {
     const Mesh m = kt::grid(2, 2, 1);
     const kdrt_triangles view = m.view();
