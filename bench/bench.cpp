@@ -529,7 +529,7 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
     double aspect = double(width) / height;
     for (unsigned y = 0; y < height; ++y)
         for (unsigned x = 0; x < width; ++x) {
-            kdrt_ray r;
+            kdrt_ray r{};
             for (int a = 0; a < 3; ++a) r.org[a] = scene.eye[a];
             r.dir[0] = float((2.0 * (x + 0.5) / width - 1.0) * scene.tan_half_fov * aspect);
             r.dir[1] = float((1.0 - 2.0 * (y + 0.5) / height) * scene.tan_half_fov);

@@ -159,7 +159,7 @@ int main() {
     jobs.parallel_for(height, [&](uint32_t y) {
         for (int x = 0; x < width; ++x) { // a character is about twice as tall as wide
             const float sx = (2.0f * (x + 0.5f) / width - 1) * 0.9f, sy = (1 - 2.0f * (y + 0.5f) / height) * 0.35f;
-            const kdrt_ray ray = {{0, 4, 6}, 0, {sx, -0.555f + 0.832f * sy, -0.832f - 0.555f * sy}, INFINITY};
+            const kdrt_ray ray = {{0, 4, 6}, 0, {sx, -0.555f + 0.832f * sy, -0.832f - 0.555f * sy}, INFINITY, 0};
             image[size_t(y) * width + x] = " .:-=+*#%@"[std::min(9, int(10 * shade(tree, ray, true, counts)))];
         }
     });

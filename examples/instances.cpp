@@ -107,7 +107,7 @@ static void check(bool ok, const char *what, int frame) {
 }
 // Does a ray straight down at (x, z) hit the target? Only the pickable bit: nothing else counts.
 static bool picks_target(const kdrt_scene *scene, float x, float z) {
-    const kdrt_ray ray = {{x, 10, z}, 0, {0, -1, 0}, INFINITY};
+    const kdrt_ray ray = {{x, 10, z}, 0, {0, -1, 0}, INFINITY, 0};
     kdrt_query pick = kdrt_default_query();
     pick.mask = kPickable;
     kdrt_hit hit;
@@ -181,7 +181,7 @@ int main() {
                 const float yaw = (x + 0.5f) / 32 * kPi / 2 - kPi / 4, pitch = 0.17f - (y + 0.5f) / 16 * 0.7f;
                 const float level = std::cos(pitch); // the direction's length in the ground plane
                 const kdrt_ray ray = {{eye[0], eye[1], eye[2]}, 0,
-                                      {level * std::cos(yaw), std::sin(pitch), level * std::sin(yaw)}, INFINITY};
+                                      {level * std::cos(yaw), std::sin(pitch), level * std::sin(yaw)}, INFINITY, 0};
                 kdrt_hit hit;
                 // Without the filter every ray hits the box it starts in; with it, none does.
                 unfiltered_player += kdrt_scene_intersect(scene, &ray, nullptr, &hit) && hit.geometry == kPlayer;
@@ -197,7 +197,7 @@ int main() {
         for (uint32_t a = 1; a < kAgents; a += 3) {
             float x, z;
             agent_pose(a, frame, pose, &x, &z);
-            const kdrt_ray up = {{x, 0.01f, z}, 0, {0, 1, 0}, INFINITY};
+            const kdrt_ray up = {{x, 0.01f, z}, 0, {0, 1, 0}, INFINITY, 0};
             const bool ok = !kdrt_scene_occluded(scene, &up, &shadow) && kdrt_scene_occluded(scene, &up, nullptr);
             check(ok, "an orb blocks the sun, or no ray meets it", frame), orb_checks += ok;
         }

@@ -26,12 +26,12 @@ int main(void)
     }
 
     /* Straight down onto (0.75, 0.25): triangle 0, at distance 1. */
-    kdrt_ray ray = {{0.75f, 0.25f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+    kdrt_ray ray = {{0.75f, 0.25f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
     kdrt_hit hit;
     int ok = kdrt_intersect(tree, &ray, &hit) && hit.triangle == 0 && hit.t > 0.999f && hit.t < 1.001f;
 
     /* A shadow ray from (0.25, 0.75, 1) that stops at t = 0.5, above the square: not occluded. */
-    kdrt_ray shadow = {{0.25f, 0.75f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, 0.5f};
+    kdrt_ray shadow = {{0.25f, 0.75f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, 0.5f, 0};
     ok = ok && !kdrt_occluded(tree, &shadow);
 
     kdrt_tree_free(tree);

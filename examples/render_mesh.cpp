@@ -208,7 +208,7 @@ static int run(int argc, char **argv)
             const double sy = (1.0 - 2.0 * (double(y) + 0.5) / height) * tan_half;
             const Vec3 d = normalize(forward + sx * right + sy * up);
             kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f,
-                            {float(d.x), float(d.y), float(d.z)}, INFINITY};
+                            {float(d.x), float(d.y), float(d.z)}, INFINITY, 0};
             kdrt_hit hit;
             float n[3];
             double r = 0.30, g = 0.30, b = 0.32; // background

@@ -23,7 +23,7 @@
          kdrt_result r = kdrt_tree_build(&mesh, &options, &tree, NULL);
          if (r != KDRT_SUCCESS) { fprintf(stderr, "kdrt: %s\n", kdrt_result_string(r)); ... }
 
-         kdrt_ray ray = {{ox, oy, oz}, 0.0f, {dx, dy, dz}, INFINITY};
+         kdrt_ray ray = {{ox, oy, oz}, 0.0f, {dx, dy, dz}, INFINITY, 0};  // 0: start at the root
          kdrt_hit hit;
          if (kdrt_intersect(tree, &ray, &hit)) { ... hit.t, hit.u, hit.v, hit.triangle ... }
          if (kdrt_occluded(tree, &ray)) { ... }
@@ -213,6 +213,33 @@
      depth and leaf references) and kdrt_tree_reference() (the caller's triangle a reference
      names) walk a built tree without its internals.
 
+   START CELLS
+     A kd-tree's leaves tile its box, so a ray that starts inside it can start in the leaf that
+     holds its origin and walk from leaf to leaf, instead of descending from the root to that
+     leaf first: most of a secondary ray's node steps (Havran's ropes; Popov et al. 2007). Every
+     tree keeps, for each leaf (a cell), its box and six ropes, one across each face to the
+     smallest node whose box covers that face (none on the tree's boundary): 48 bytes a leaf and
+     4 a node, in kdrt_tree_stats.bytes. kdrt_ray.cell names the cell to start in: kdrt_hit.cell
+     (the leaf that holds a hit point), kdrt_spawn_ray() (which sets it for the ray it makes), or
+     kdrt_locate(tree, point) for a camera, light or eye inside the scene, whose rays then share
+     one descent. 0, as in a {org, tmin, dir, tmax} initialiser, starts at the root (compilers'
+     -Wmissing-field-initializers asks for the fifth member: write 0).
+     A cell is only a hint. It is used when it names a leaf of this tree whose box holds the
+     origin strictly inside (exact float comparisons); any other value (out of range, an inner
+     node, another tree's, a stale one after a rebuild, a neighbour, an origin on the cell's face)
+     starts at the root, so no hint can change an answer. From the cell, the walk tests the
+     leaf's blocks, stops when the best hit lies before the ray leaves the cell, else follows the
+     rope of the face it leaves by and goes down to the leaf it enters, deciding each plane as the
+     root walk does, with the same rounding bound; where that bound leaves the way in doubt (the
+     ray leaves near an edge or a corner of a cell, or crosses a plane about where it enters the
+     next), it goes on with the walk from the root over the rest of its range. Every query takes
+     the hint: kdrt_intersect(), kdrt_occluded(), the _query forms, kdrt_intersect_k(), and the
+     scene queries for the scene's mesh tree (instances start at their root; kdrt_scene_locate()
+     and kdrt_scene_spawn_ray() give the mesh tree's cells). The answers are the walk from the
+     root's, bit for bit (the tests compare the two on millions of rays of every kind), with the
+     exception QUERIES AND GUARANTEES names: a triangle missed by less than the test's rounding
+     that still "hits" may lie in a leaf one walk visits and the other does not.
+
    KERNELS
      A tree's queries run one of two kernels, chosen when it is built and kept in the tree (no
      global state): the AVX2 kernel where the header was compiled for x86-64 by GCC or Clang
@@ -394,6 +421,10 @@ typedef struct kdrt_ray {
     float tmin;
     float dir[3];
     float tmax;
+    /* Where the walk may start (START CELLS): a cell of the tree that holds org, from
+       kdrt_hit.cell, kdrt_spawn_ray() or kdrt_locate(); 0 starts at the root. Only a hint: a
+       wrong, stale or foreign cell costs time, never an answer. */
+    uint32_t cell;
 } kdrt_ray;
 
 typedef struct kdrt_hit {
@@ -405,6 +436,9 @@ typedef struct kdrt_hit {
        itself. One-tree queries: 0 and KDRT_INVALID_ID. */
     uint32_t geometry;
     uint32_t instance;
+    /* The cell (a leaf of the tree, by node index) that holds the hit point, for the next ray's
+       start (START CELLS); 0 on a miss, through an instance, and in kdrt_intersect_k's lists. */
+    uint32_t cell;
 } kdrt_hit;
 
 /* Allocation hooks; user is passed back to both. All zero: KDRT_MALLOC / KDRT_FREE.
@@ -564,6 +598,10 @@ typedef struct kdrt_node_info {
     kdrt_aabb bounds;         /* kdrt_tree_bounds() cut by the ancestors' splits (as in sah_cost) */
     uint32_t triangle_count;  /* leaf: how many triangles it refers to; inner node: 0 */
     uint32_t first_reference; /* leaf: its references are first_reference .. + triangle_count - 1 */
+    /* Leaf: its ropes (START CELLS), [2 * axis + 0] across the face at bounds.min[axis] and
+       [2 * axis + 1] across bounds.max[axis]: the smallest node whose box covers that face, or
+       KDRT_INVALID_ID on the tree's boundary. Inner node: KDRT_INVALID_ID. */
+    uint32_t ropes[6];
 } kdrt_node_info;
 /* Nodes in the tree (kdrt_tree_stats.nodes); NULL gives 0. */
 KDRT_API uint32_t kdrt_tree_node_count(const kdrt_tree *tree);
@@ -640,6 +678,9 @@ typedef struct kdrt_traversal_stats {
     uint64_t empty_leaves;
     uint64_t triangle_tests; /* triangles tested (the scalar kernel's mailbox skips repeats) */
     uint64_t block_tests;    /* 8-triangle block tests (the AVX2 kernel) */
+    uint64_t rope_steps;     /* cells left through a face to the next (START CELLS) */
+    uint64_t rope_nodes;     /* inner nodes passed going down from a rope to the next cell */
+    uint64_t restarts;       /* rope walks handed to the walk from the root (an edge, a corner) */
 } kdrt_traversal_stats;
 #ifdef KDRT_TRAVERSAL_STATS
 /* kdrt_intersect(), adding its work to *stats (which may be NULL). */
@@ -663,10 +704,15 @@ KDRT_API void kdrt_offset_ray_origin(const float point[3], const float normal[3]
                                      const float dir[3], float out[3]);
 /* A secondary ray leaving a hit in direction dir (reflection, refraction, shadow or bounce):
    origin = the hit's surface point offset by kdrt_offset_ray_origin(), tmin = 0,
-   tmax = infinity. Returns 0 (and a ray that misses everything) when hit is not a hit of tree.
-   For a shadow ray to a point q, set dir = q - out->org afterwards and keep tmax below 1. */
+   tmax = infinity, cell = the start cell that holds the origin (START CELLS). Returns 0 (and a
+   ray that misses everything) when hit is not a hit of tree. For a shadow ray to a point q, set
+   dir = q - out->org afterwards and keep tmax below 1; the cell stays right. */
 KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
                             kdrt_ray *out);
+/* The cell that holds point, for kdrt_ray.cell: a camera, a light or an eye inside the scene
+   whose rays then share one descent (START CELLS). 0 for a point outside the tree's box, NaN or
+   infinite, or a NULL argument. */
+KDRT_API uint32_t kdrt_locate(const kdrt_tree *tree, const float point[3]);
 
 /* ==== scenes (see SCENES): many meshes and instances behind one query ==== */
 
@@ -739,6 +785,9 @@ KDRT_API int kdrt_scene_hit_surface(const kdrt_scene *scene, const kdrt_hit *hit
                                     float normal[3]);
 KDRT_API int kdrt_scene_spawn_ray(const kdrt_scene *scene, const kdrt_hit *hit, const float dir[3],
                                   kdrt_ray *out);
+/* kdrt_locate() in the scene's mesh tree, whose walk a ray's cell starts (instances start at
+   their root); 0 without meshes. */
+KDRT_API uint32_t kdrt_scene_locate(const kdrt_scene *scene, const float point[3]);
 
 /* ==== optics (see OPTICS): reflection, refraction, Fresnel reflectance, the medium stack ==== */
 
@@ -940,6 +989,15 @@ typedef char kdrt__block_is_5_cache_lines[sizeof(kdrt__block) == 320 ? 1 : -1];
 
 static int kdrt__cpu_has_avx2(void); /* 1 where the AVX2 kernel is compiled in and can run */
 
+/* A leaf as the rope walk sees it (START CELLS): its box, the tree's bounds cut by its ancestors'
+   splits, and its ropes, [2 * axis + side] the node across the face at lo[axis] (side 0) or
+   hi[axis] (side 1), KDRT__NO_ROPE on the tree's boundary. */
+#define KDRT__NO_ROPE 0xFFFFFFFFu
+typedef struct kdrt__cell {
+    float lo[3], hi[3];
+    uint32_t rope[6];
+} kdrt__cell;
+
 /* A mesh of a tree. A tree numbers its triangles across its meshes: mesh k's triangle i is
    first + i. kdrt_tree_build() makes one (ID 0); a scene's mesh tree one per mesh geometry, in
    ID order, so that the lower number is the lower (geometry ID, triangle), the tie rule. */
@@ -967,6 +1025,8 @@ struct kdrt_tree {
     kdrt__block *blocks;  /* the leaves' blocks, leaf by leaf, depth first; 64-byte aligned */
     void *block_memory;   /* what was allocated for blocks */
     uint32_t *block_refs; /* [b]: the reference number of block b's lane 0 (inspection) */
+    kdrt__cell *cells;    /* one a leaf, in depth-first order */
+    uint32_t *cell_of;    /* [node]: a leaf's index in cells (inner nodes: unused) */
     kdrt_tree_stats stats;
 };
 
@@ -2978,6 +3038,76 @@ static void kdrt__finish_tree(kdrt_tree *tree, kdrt__builder *b, uint32_t triang
     tree->stats.sah_cost = kdrt__sah_cost(tree, b->sah_trav, b->sah_isect);
 }
 
+/* ---- cells and ropes (START CELLS) ---- */
+
+/* The node a rope across face (2 * axis + side) of the box [lo, hi] should name, from node, which
+   covers the face: pushed down while one child's box still covers all of it (Havran's optimised
+   ropes). */
+static uint32_t kdrt__push_rope(const kdrt__node *nodes, uint32_t node, int face, const float lo[3],
+                                const float hi[3])
+{
+    const uint32_t face_axis = (uint32_t)face >> 1;
+    while (node != KDRT__NO_ROPE && !kdrt__node_is_leaf(&nodes[node])) {
+        const kdrt__node *n = &nodes[node];
+        const uint32_t axis = kdrt__node_axis(n);
+        const float split = n->u.split;
+        if (axis == face_axis) { /* the child on the face's side, if the plane is past it */
+            if ((face & 1) && split > hi[axis]) node = node + 1;
+            else if (!(face & 1) && split < lo[axis]) node = kdrt__node_above(n);
+            else break;
+        } else if (hi[axis] <= split)
+            node = node + 1;
+        else if (lo[axis] >= split)
+            node = kdrt__node_above(n);
+        else
+            break; /* the plane cuts the face: both children share it */
+    }
+    return node;
+}
+
+/* The cells of node's subtree, whose box is [lo, hi] and whose faces' neighbours are rope[]. */
+static void kdrt__cells_of(kdrt_tree *tree, uint32_t node, const float lo[3], const float hi[3],
+                           const uint32_t rope[6], uint32_t *count)
+{
+    const kdrt__node *n = &tree->nodes[node];
+    if (kdrt__node_is_leaf(n)) {
+        kdrt__cell *c = &tree->cells[*count];
+        int f;
+        memcpy(c->lo, lo, sizeof c->lo), memcpy(c->hi, hi, sizeof c->hi);
+        for (f = 0; f < 6; ++f) c->rope[f] = kdrt__push_rope(tree->nodes, rope[f], f, lo, hi);
+        tree->cell_of[node] = (*count)++;
+    } else {
+        const uint32_t axis = kdrt__node_axis(n), above = kdrt__node_above(n);
+        float clo[3], chi[3];
+        uint32_t crope[6];
+        memcpy(chi, hi, sizeof chi), memcpy(crope, rope, sizeof crope);
+        chi[axis] = n->u.split, crope[2 * axis + 1] = above;
+        kdrt__cells_of(tree, node + 1, lo, chi, crope, count);
+        memcpy(clo, lo, sizeof clo), memcpy(crope, rope, sizeof crope);
+        clo[axis] = n->u.split, crope[2 * axis] = node + 1;
+        kdrt__cells_of(tree, above, clo, hi, crope, count);
+    }
+}
+
+/* Every leaf's cell, and the map from nodes to cells; counted in stats.bytes. */
+static kdrt_result kdrt__build_cells(kdrt_tree *tree)
+{
+    const uint32_t none[6] = {KDRT__NO_ROPE, KDRT__NO_ROPE, KDRT__NO_ROPE,
+                              KDRT__NO_ROPE, KDRT__NO_ROPE, KDRT__NO_ROPE};
+    uint32_t count = 0;
+    if (tree->stats.nodes == 0) return KDRT_SUCCESS;
+    tree->cells = (kdrt__cell *)kdrt__alloc(&tree->allocator,
+                                           (size_t)tree->stats.leaves * sizeof(kdrt__cell));
+    tree->cell_of = (uint32_t *)kdrt__alloc(&tree->allocator,
+                                           (size_t)tree->stats.nodes * sizeof(uint32_t));
+    if (!tree->cells || !tree->cell_of) return KDRT_ERROR_OUT_OF_MEMORY;
+    kdrt__cells_of(tree, 0, tree->bounds.min, tree->bounds.max, none, &count);
+    KDRT_ASSERT(count == tree->stats.leaves);
+    tree->stats.bytes += (size_t)tree->stats.leaves * sizeof(kdrt__cell) +
+                         (size_t)tree->stats.nodes * sizeof(uint32_t);
+    return KDRT_SUCCESS;
+}
+
 /* Builds the nodes and blocks of a new tree over its meshes, with checked options; on failure
    frees the tree. */
 static kdrt_result kdrt__build_tree(kdrt_tree *tree, const kdrt_build_options *opt,
@@ -2995,6 +3125,7 @@ static kdrt_result kdrt__build_tree(kdrt_tree *tree, const kdrt_build_options *o
         r = kdrt__pack_blocks(&opt->allocator, &opt->scheduler, &tree->meshes, b.nodes,
                               b.node_count, b.refs, tree);
     if (r == KDRT_SUCCESS) kdrt__finish_tree(tree, &b, n);
+    if (r == KDRT_SUCCESS) r = kdrt__build_cells(tree);
     kdrt__free(&opt->allocator, scratch);
     kdrt__free(&opt->allocator, b.refs); /* the blocks hold the triangles now */
     if (r != KDRT_SUCCESS) {
@@ -3043,6 +3174,8 @@ KDRT_API void kdrt_tree_free(kdrt_tree *tree)
     kdrt__free(&a, tree->nodes);
     kdrt__free(&a, tree->block_memory);
     kdrt__free(&a, tree->block_refs);
+    kdrt__free(&a, tree->cells);
+    kdrt__free(&a, tree->cell_of);
     kdrt__free(&a, tree);
 }
 
@@ -3094,7 +3227,9 @@ KDRT_API kdrt_result kdrt_tree_node(const kdrt_tree *tree, uint32_t index, kdrt_
         /* An empty leaf has no block: its references would start where the next leaf's do. */
         info.first_reference = n->u.first < tree->stats.blocks ? tree->block_refs[n->u.first]
                                                                : (uint32_t)tree->stats.triangle_refs;
+        memcpy(info.ropes, tree->cells[tree->cell_of[index]].rope, sizeof info.ropes);
     } else {
+        memset(info.ropes, 0xFF, sizeof info.ropes); /* KDRT_INVALID_ID */
         info.axis = (int)kdrt__node_axis(n);
         info.split = n->u.split;
         info.below = index + 1u;
@@ -3144,6 +3279,7 @@ static void kdrt__miss(kdrt_hit *hit)
 {
     hit->t = hit->u = hit->v = 0.0f;
     hit->triangle = KDRT_INVALID_ID, hit->geometry = 0, hit->instance = KDRT_INVALID_ID;
+    hit->cell = 0;
 }
 
 /* A walk's bound: t, or a full list's last hit when that is nearer (list may be NULL). */
@@ -3234,7 +3370,7 @@ KDRT__NOINLINE static int kdrt__accept_ruled(kdrt_hit *best, uint32_t tri, float
     /* A list orders by the named hit (kdrt__keep_hit); the nearest hit by the tree's number. */
     if (s->list ? !kdrt__nearer(best, 0u, t, u, v, s) : !kdrt__nearer(best, tri, t, u, v, s))
         return 0;
-    candidate.t = t, candidate.u = u, candidate.v = v;
+    candidate.t = t, candidate.u = u, candidate.v = v, candidate.cell = 0;
     if (!kdrt__counts(s->rules, kdrt__name_hit(s->rules, tri, &candidate), &candidate, front))
         return 0;
     if (s->list) return kdrt__keep_hit(s->list, best, &candidate);
@@ -3554,6 +3690,70 @@ static KDRT__FORCEINLINE uint32_t kdrt__descend(const kdrt__node *n, uint32_t no
     return near_child;
 }
 
+/* The leaf that hint names if the walk may start there: a leaf of this tree whose box holds the
+   origin strictly inside (on a face, the ray could touch the neighbour's triangles at t = 0, or
+   lie in the plane), else KDRT__NO_ROPE: the walk starts at the root. */
+static KDRT__FORCEINLINE uint32_t kdrt__start_cell(const kdrt_tree *tree, uint32_t hint,
+                                                  const float org[3])
+{
+    const kdrt__cell *c;
+    if (hint == 0 || hint >= tree->stats.nodes || !kdrt__node_is_leaf(&tree->nodes[hint]))
+        return KDRT__NO_ROPE;
+    c = &tree->cells[tree->cell_of[hint]];
+    if (!(c->lo[0] < org[0] && org[0] < c->hi[0] && c->lo[1] < org[1] && org[1] < c->hi[1] &&
+          c->lo[2] < org[2] && org[2] < c->hi[2]))
+        return KDRT__NO_ROPE;
+    return hint;
+}
+
+/* One step of the rope walk from the leaf with cell c, whose triangles have been tested, bound
+   being the best hit's t (or the range's end): 0 when the walk is done (the ray leaves the cell
+   past bound, or leaves the tree), 1 with the next leaf in *node, -1 when rounding leaves the way
+   in doubt (the ray leaves near an edge or a corner of the cell, or passes a plane near where it
+   enters the next): the walk goes on from the root, from *restart on. Exit distances carry the
+   split planes' rounding bound, KDRT__T_SLACK; every decision is one the bounds prove. */
+static KDRT__FORCEINLINE int kdrt__rope_step(const kdrt_tree *tree, const kdrt__cell *c,
+                                            const kdrt__ray_setup *s, float bound,
+                                            uint32_t *node, float *restart,
+                                            kdrt_traversal_stats *stats)
+{
+    float t_exit = INFINITY, t_next = INFINITY, lo, hi;
+    uint32_t next;
+    int a, face = 0;
+    for (a = 0; a < 3; ++a) {
+        float t;
+        if (!kdrt__finite(s->inv_dir[a])) continue; /* parallel to the axis' faces */
+        t = ((s->dir[a] > 0.0f ? c->hi[a] : c->lo[a]) - s->org[a]) * s->inv_dir[a];
+        if (t < t_exit) t_next = t_exit, t_exit = t, face = a;
+        else if (t < t_next) t_next = t;
+    }
+    lo = t_exit * (1.0f - KDRT__T_SLACK), hi = t_exit * (1.0f + KDRT__T_SLACK);
+    if (bound < lo) return 0; /* every nearer hit lies in the cell */
+    *restart = lo;
+    if (t_next * (1.0f - KDRT__T_SLACK) <= hi) return -1; /* which face is in doubt */
+    next = c->rope[2 * face + (s->dir[face] > 0.0f)];
+    if (next == KDRT__NO_ROPE) return 0; /* out of the tree: nothing more to hit */
+    KDRT__COUNT(stats, rope_steps, 1);
+    while (!kdrt__node_is_leaf(&tree->nodes[next])) {
+        /* Down to the child the ray is in where it enters, t_exit: on the origin's side of the
+           plane until it crosses it. */
+        const kdrt__node *n = &tree->nodes[next];
+        const uint32_t axis = kdrt__node_axis(n);
+        const float split = n->u.split, o = s->org[axis];
+        const float t_split = (split - o) * s->inv_dir[axis];
+        const int below_first = o < split || (o == split && s->dir[axis] <= 0.0f);
+        const uint32_t near_child = below_first ? next + 1 : kdrt__node_above(n);
+        KDRT__COUNT(stats, rope_nodes, 1);
+        if (t_split != t_split) return -1; /* the ray lies in the plane */
+        if (t_split <= 0.0f || t_split * (1.0f - KDRT__T_SLACK) > hi) next = near_child;
+        else if (t_split * (1.0f + KDRT__T_SLACK) < lo)
+            next = below_first ? kdrt__node_above(n) : next + 1;
+        else return -1; /* it crosses the plane about where it enters */
+    }
+    *node = next;
+    return 1;
+}
+
 /* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
    counting is compiled in and it is not NULL, gets the work done. Inlined into each query, so
    that a plain one (no rules, no list: ruled a constant 0) is the walk without rules. */
@@ -3567,7 +3767,11 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
        across leaves is tested once per ray: a second test could only repeat the first answer. */
     uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
-    float t0, t1;
+    float t0, t1, root_t0, root_t1;
+    /* The rope walk (from the ray's start cell, leaf to leaf) while roping, else the walk from the
+       root with a stack; the cell holding the best hit so far, and the rope steps taken. */
+    int roping;
+    uint32_t hit_cell = 0, steps = 0;
     /* Whether rules or a list apply (a list comes with rules, which name its hits): from the
        arguments, not from s, so that it is a constant where they are. */
     const int ruled = rules != NULL;
@@ -3580,6 +3784,10 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     s.list = list; /* best is then the bound: the list's last hit once it is full */
     s.rules = rules;
     best->t = kdrt__list_bound(list, best->t); /* full from an earlier walk (scenes) */
+    root_t0 = t0, root_t1 = t1;
+    node = kdrt__start_cell(tree, ray->cell, s.org);
+    roping = node != KDRT__NO_ROPE;
+    if (!roping) node = 0;
 
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
@@ -3623,14 +3831,42 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
                 if (found && any_hit) return 1;
             }
         }
+        if (roping) {
+            float restart;
+            uint32_t next;
+            const int step = kdrt__rope_step(tree, &tree->cells[tree->cell_of[node]], &s, best->t,
+                                             &next, &restart, stats);
+            if (step == 0) {
+                hit_cell = node;
+                break;
+            }
+            /* A ray cannot pass more cells than there are: more steps are a tree whose odd
+               splits (the median builder's may lie outside a node's box) it cannot trust. */
+            if (step > 0 && ++steps <= tree->stats.leaves) {
+                node = next;
+                continue;
+            }
+            /* The cells behind have been tested up to restart: from there, the walk from the root
+               over what is left of the range. */
+            KDRT__COUNT(stats, restarts, 1);
+            roping = 0, node = 0, sp = 0;
+            t0 = restart > root_t0 ? restart : root_t0, t1 = root_t1;
+            if (t0 > best->t) break;
+            continue;
+        }
+        if (best->t <= t1) hit_cell = node; /* the best hit so far may lie in this leaf */
         /* Next node that starts no later than the best hit: any triangle in a node starting
            beyond it is farther away. */
         do {
-            if (sp == 0) return best->triangle != KDRT_INVALID_ID;
+            if (sp == 0) goto done;
             --sp;
             node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
         } while (t0 > best->t);
     }
+done:
+    if (best->triangle == KDRT_INVALID_ID) return 0;
+    best->cell = hit_cell;
+    return 1;
 }
 
 /* The rules for a walk of tree under query (NULL: none) in *storage, or NULL when the walk needs
@@ -3867,6 +4103,28 @@ static void kdrt__leave_surface(const float point[3], const float normal[3], con
     out->tmax = INFINITY;
 }
 
+KDRT_API uint32_t kdrt_locate(const kdrt_tree *tree, const float point[3])
+{
+    uint32_t node = 0;
+    int a;
+    if (!tree || !point || tree->stats.nodes == 0) return 0;
+    for (a = 0; a < 3; ++a) /* NaN fails these too */
+        if (!(point[a] >= tree->bounds.min[a] && point[a] <= tree->bounds.max[a])) return 0;
+    while (!kdrt__node_is_leaf(&tree->nodes[node])) {
+        const kdrt__node *n = &tree->nodes[node];
+        node = point[kdrt__node_axis(n)] <= n->u.split ? node + 1 : kdrt__node_above(n);
+    }
+    return node;
+}
+
+/* The start cell of a ray leaving a surface at org: the hit's own cell when it holds org, as it
+   does unless the offset crossed a face, else the cell found from the root. */
+static uint32_t kdrt__spawn_cell(const kdrt_tree *tree, uint32_t hint, const float org[3])
+{
+    if (!tree) return 0;
+    return kdrt__start_cell(tree, hint, org) != KDRT__NO_ROPE ? hint : kdrt_locate(tree, org);
+}
+
 KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const float dir[3],
                             kdrt_ray *out)
 {
@@ -3875,6 +4133,7 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
     memset(out, 0, sizeof *out);
     if (!dir || !kdrt_hit_surface(tree, hit, point, normal)) return 0; /* zero dir: misses */
     kdrt__leave_surface(point, normal, dir, out);
+    out->cell = kdrt__spawn_cell(tree, hit->cell, out->org);
     return 1;
 }
 
@@ -4362,6 +4621,7 @@ static void kdrt__object_ray(const kdrt__instance *in, const kdrt_ray *ray, floa
     }
     out->tmin = ray->tmin;
     out->tmax = tmax;
+    out->cell = 0; /* the world ray's cell is the mesh tree's: the instance's walk starts at its root */
 }
 
 /* A nearest hit of the scene's mesh tree (a tree-wide triangle number) named as the caller
@@ -4417,7 +4677,7 @@ static int kdrt__walk_instances(const kdrt_scene *sc, const kdrt_ray *ray, const
                 continue;
             }
             if (any_hit) return 1;
-            h.geometry = h.instance = in->id;
+            h.geometry = h.instance = in->id, h.cell = 0;
             if (best->triangle == KDRT_INVALID_ID || kdrt__hit_before(&h, best)) *best = h, found = 1;
         }
         do {
@@ -4521,7 +4781,14 @@ KDRT_API int kdrt_scene_spawn_ray(const kdrt_scene *scene, const kdrt_hit *hit, 
     memset(out, 0, sizeof *out);
     if (!dir || !kdrt_scene_hit_surface(scene, hit, point, normal)) return 0;
     kdrt__leave_surface(point, normal, dir, out);
+    out->cell = kdrt__spawn_cell(scene->meshes, hit->instance == KDRT_INVALID_ID ? hit->cell : 0,
+                                 out->org);
     return 1;
+}
+
+KDRT_API uint32_t kdrt_scene_locate(const kdrt_scene *scene, const float point[3])
+{
+    return scene ? kdrt_locate(scene->meshes, point) : 0;
 }
 
 /* ==== optics: reflection, refraction, Fresnel reflectance ==== */

@@ -33,8 +33,8 @@ int main(void)
     kdrt_build_options options = kdrt_default_build_options();
     kdrt_build_report report;
     kdrt_tree *tree = NULL;
-    kdrt_ray down = {{0.25f, 0.75f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
-    kdrt_ray beside = {{1.5f, 0.5f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+    kdrt_ray down = {{0.25f, 0.75f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
+    kdrt_ray beside = {{1.5f, 0.5f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
     kdrt_hit hit;
     kdrt_result r;
     const float from_above[3] = {0.6f, 0.0f, -0.8f}, up[3] = {0.0f, 0.0f, 1.0f};
@@ -94,7 +94,7 @@ int main(void)
            z = 1 as instance 9, so a ray down meets the instance first, on its back face (the
            mirror turns the winding). */
         const float mirror_up[12] = {-1, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 1};
-        const kdrt_ray off_diagonal = {{0.25f, 0.6f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+        const kdrt_ray off_diagonal = {{0.25f, 0.6f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
         kdrt_geometry geometries[2];
         kdrt_scene *scene = NULL;
         kdrt_query query = kdrt_default_query();

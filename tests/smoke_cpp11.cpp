@@ -41,8 +41,8 @@ int main()
     check(r == KDRT_SUCCESS && tree != nullptr, "build");
     if (!tree) return 1;
 
-    const kdrt_ray down = {{0.75f, 0.25f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
-    const kdrt_ray beside = {{-0.5f, 0.5f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+    const kdrt_ray down = {{0.75f, 0.25f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
+    const kdrt_ray beside = {{-0.5f, 0.5f, 2.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
     kdrt_hit hit;
     check(kdrt_intersect(tree, &down, &hit) == 1, "hit");
     check(hit.triangle == 0, "hit: triangle 0");

@@ -271,7 +271,11 @@ TEST_CASE("accuracy sets: the frame, the frame moved far away with its camera", 
         CHECK(s.mesh.positions == scene.geometry.positions);
         const std::vector<kdrt_ray> &expected = &s == &frame[0] ? primary : diffuse;
         REQUIRE(s.rays.size() == expected.size());
-        CHECK(std::memcmp(s.rays.data(), expected.data(), expected.size() * sizeof(kdrt_ray)) == 0);
+        for (size_t i = 0; i < expected.size(); ++i) {  // the rays, not their start cells, which name another tree's
+            kdrt_ray a = s.rays[i], b = expected[i];
+            a.cell = b.cell = 0;
+            CHECK(std::memcmp(&a, &b, sizeof a) == 0);
+        }
     }
 
     // Moved far away, the camera moves along: the rays see what they saw near the origin.

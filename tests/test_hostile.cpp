@@ -214,7 +214,7 @@ TEST_CASE("hostile: queries at the ends of float's range give finite hits or non
     kdrt_tree *t = nullptr;
     REQUIRE(kdrt_tree_build(&m, nullptr, &t, nullptr) == KDRT_SUCCESS);
     kt::TreePtr owner(t);
-    kdrt_hit h{1.0f, 1.0f, 1e-7f, 0, 0, KDRT_INVALID_ID};
+    kdrt_hit h{1.0f, 1.0f, 1e-7f, 0, 0, KDRT_INVALID_ID, 0};
     float point[3], normal[3];
     REQUIRE(kdrt_hit_surface(t, &h, point, normal));
     CHECK(point[0] == M);

@@ -1715,7 +1715,7 @@ TEST_CASE("scene: an instance whose world box leaves float's range is refused, b
         CHECK(std::isfinite(bounds.min[a]));
         CHECK(std::isfinite(bounds.max[a]));
     }
-    kdrt_ray down = {{5, 0, 1}, 0, {0, 0, -1}, kInf};  // through instance 3 at z = 0.1
+    kdrt_ray down = {{5, 0, 1}, 0, {0, 0, -1}, kInf, 0};  // through instance 3 at z = 0.1
     kdrt_hit hit;
     REQUIRE(kdrt_scene_intersect(ok.get(), &down, nullptr, &hit));
     CHECK(hit.geometry == 3);
@@ -1748,7 +1748,7 @@ TEST_CASE("scene: a skipped triangle is named by its mesh, a NULL query sees mas
     entries[0].mask = 0;
     entries.resize(1);
     const ScenePtr masked = build_scene(entries);
-    const kdrt_ray down = {{0.25f, 0.25f, 1}, 0, {0, 0, -1}, kInf};
+    const kdrt_ray down = {{0.25f, 0.25f, 1}, 0, {0, 0, -1}, kInf, 0};
     const kdrt_query plain = kdrt_default_query();
     kdrt_hit hit, k[2];
     for (const kdrt_query *q : {static_cast<const kdrt_query *>(nullptr), &plain}) {
@@ -1765,7 +1765,7 @@ TEST_CASE("scene: a skipped triangle is named by its mesh, a NULL query sees mas
     const float far_mirror[12] = {-1, 0, 0, 2e30f, 0, 1, 0, 0, 0, 0, 1, 0};
     const ScenePtr far_away = build_scene({kdrt_instance_geometry(3, tree.get(), far_mirror)});
     for (uint32_t t = 0; t < cube.triangle_count(); ++t) {
-        const kdrt_hit on = {0.0f, 0.25f, 0.25f, t, 3, 3};
+        const kdrt_hit on = {0.0f, 0.25f, 0.25f, t, 3, 3, 0};
         float point[3], normal[3], object[3];
         REQUIRE(kdrt_scene_hit_surface(far_away.get(), &on, point, normal));
         REQUIRE(kdrt_hit_surface(tree.get(), &on, nullptr, object));
@@ -1926,7 +1926,7 @@ TEST_CASE("scene: empty scenes, one mesh, instances only; NULL arguments", "[sce
         CHECK(kdrt_scene_intersect_k(empty.get(), &ray, nullptr, list, 4) == 0);
         CHECK(kdrt_scene_geometry(empty.get(), 1) == nullptr);
         CHECK(kdrt_scene_commit(empty.get()) == KDRT_SUCCESS);
-        const kdrt_hit made_up{1.0f, 0.2f, 0.2f, 0, 1, KDRT_INVALID_ID};
+        const kdrt_hit made_up{1.0f, 0.2f, 0.2f, 0, 1, KDRT_INVALID_ID, 0};
         float p[3] = {-7, -7, -7};
         CHECK(kdrt_scene_hit_surface(empty.get(), &made_up, p, nullptr) == 0);
         CHECK(p[0] == -7.0f);

@@ -101,7 +101,7 @@ std::vector<std::string> shared_mesh_files() {
 }
 
 kdrt_ray ray_of(float ox, float oy, float oz, float dx, float dy, float dz, float tmin, float tmax) {
-    kdrt_ray r;
+    kdrt_ray r{};
     r.org[0] = ox, r.org[1] = oy, r.org[2] = oz;
     r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
     r.tmin = tmin, r.tmax = tmax;

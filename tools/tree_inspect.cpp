@@ -265,7 +265,7 @@ bool write_boxes_picture(const common::Mesh &mesh, const kdrt_tree *tree, const 
             const double sx = (2.0 * (x + 0.5) / width - 1.0) * tan_half * aspect;
             const double sy = (1.0 - 2.0 * (y + 0.5) / height) * tan_half;
             const Vec3 d = normalize(forward + sx * right + sy * up);
-            kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f, {float(d.x), float(d.y), float(d.z)}, INFINITY};
+            kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f, {float(d.x), float(d.y), float(d.z)}, INFINITY, 0};
             kdrt_hit hit;
             double *px = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
             px[0] = px[1] = px[2] = 0.97;  // a white page, so the boxes' colours read

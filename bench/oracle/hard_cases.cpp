@@ -35,7 +35,7 @@ void cross(const double a[3], const double b[3], double out[3]) {
 double norm(const double a[3]) { return std::sqrt(dot(a, a)); }
 
 kdrt_ray make_ray(const double o[3], const double d[3], float tmin = 0.0f, float tmax = kInf) {
-    kdrt_ray r;
+    kdrt_ray r{};
     for (int a = 0; a < 3; ++a) r.org[a] = float(o[a]), r.dir[a] = float(d[a]);
     r.tmin = tmin, r.tmax = tmax;
     return r;
@@ -411,7 +411,7 @@ void add_axis_rays(std::vector<kdrt_ray> &rays, const Box &box, double step, dou
                 for (double pb = box.lo[b] - margin + offset; pb <= box.hi[b] + margin; pb += step)
                     for (double pc = box.lo[c] - margin + offset; pc <= box.hi[c] + margin; pc += step)
                         for (int start = 0; start < 2; ++start) {
-                            kdrt_ray r;
+                            kdrt_ray r{};
                             r.dir[a] = s, r.dir[b] = (zeros & 1) ? -0.0f : 0.0f, r.dir[c] = (zeros & 2) ? -0.0f : 0.0f;
                             r.org[b] = float(pb), r.org[c] = float(pc);
                             r.org[a] = float(start == 0 ? (s > 0 ? box.lo[a] - 1 : box.hi[a] + 1) : 0.5 * (box.lo[a] + box.hi[a]));

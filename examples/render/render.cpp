@@ -237,7 +237,7 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
         if (t < hit.t) hit.t = t, hit.kind = HitKind::light, hit.index = int(i);
     }
     if (world) {
-        kdrt_ray kray;
+        kdrt_ray kray{};
         to_float(ray.origin, kray.org);
         to_float(ray.dir, kray.dir);
         kray.tmin = 0;
@@ -305,7 +305,7 @@ bool Renderer::Impl::occluded(Vec3 origin, Vec3 target) const
     for (const Quad &q : scene->quads)
         if (hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, dist, s, t) < dist) return true;
     if (!world) return false;
-    kdrt_ray kray;
+    kdrt_ray kray{};
     to_float(origin, kray.org);
     to_float(d, kray.dir);  // target at t = 1 (kdrt_spawn_ray's rule for shadow rays)
     kray.tmin = 0;

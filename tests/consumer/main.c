@@ -10,7 +10,7 @@ int main(void)
     static const float triangle[] = {-1, -1, 0, 1, -1, 0, 0, 1, 0};
     kdrt_triangles mesh = {0};
     kdrt_tree *tree = NULL;
-    kdrt_ray ray = {{0.0f, 0.0f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY};
+    kdrt_ray ray = {{0.0f, 0.0f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY, 0};
     kdrt_hit hit;
     kdrt_result r;
     int ok;

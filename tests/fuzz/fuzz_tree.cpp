@@ -142,7 +142,7 @@ kdrt_build_options make_options(FuzzedDataProvider &in) {
 }
 
 kdrt_ray make_ray(FuzzedDataProvider &in, const std::vector<float> &points) {
-    kdrt_ray r;
+    kdrt_ray r{};
     for (float &x : r.org) x = fuzz::pick_float(in);
     if (!points.empty() && in.ConsumeBool()) {
         // Towards a vertex, or a point on an edge: where watertightness and ties are decided.
