@@ -26,7 +26,7 @@ int main(void)
     kdrt_triangles mesh = {0};
     kdrt_build_options options = kdrt_default_build_options();
     kdrt_tree *flat = NULL, *tree = NULL;
-    kdrt_traversal_stats work = {0, 0, 0, 0, 0}, none = {0, 0, 0, 0, 0};
+    kdrt_traversal_stats work = {0}, none = {0};
     kdrt_hit a, b;
     kdrt_ray down = {{2.3f, 5.6f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY, 0};
     kdrt_ray away = {{2.3f, 5.6f, 1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY, 0};
