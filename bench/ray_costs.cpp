@@ -22,22 +22,19 @@
 #include <string>
 #include <vector>
 
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
-
 namespace {
 
 const char *const kUsage =
     "usage: kdrt-ray-costs [MESH...] [--size WxH] [--repeat N] [--subdivide N]\n"
     "\n"
-    "For each mesh (default: the seed nefertiti and the Stanford bunny from the mesh folder\n"
-    KDRT_MESH_DIR ", else a generated torus), prints a Markdown table: per class of ray, the\n"
-    "rays in it, the inner nodes, leaves (empty ones), and triangle tests a ray takes on average,\n"
-    "and its time in ns (thread CPU time, best of N passes). SAH tree, leaf size 4, one thread.\n"
+    "For each mesh (default: the seed nefertiti and the Stanford bunny from the mesh folder, else\n"
+    "a generated torus), prints a Markdown table: per class of ray, the rays in it, the inner\n"
+    "nodes, leaves (empty ones), and triangle tests a ray takes on average, and its time in ns\n"
+    "(thread CPU time, best of N passes). SAH tree, leaf size 4, one thread.\n"
     "  --size WxH   the frame (default 400x400)\n"
     "  --repeat N   timed passes per class, the fastest kept (default 5)\n"
     "  --subdivide N  split every triangle in 4, N times, before building (default 0)\n"
+    "The mesh folder: {MESH_DIR}.\n"
     "Exit status: 0 success, 1 failure (unreadable mesh, lost output), 2 a bad command line.\n";
 
 using common::UsageError;
@@ -83,7 +80,9 @@ int run(int argc, char **argv)
             return argv[++i];
         };
         if (arg == "--help" || arg == "-h") {
-            std::fputs(kUsage, stdout);
+            std::string usage = kUsage;
+            usage.replace(usage.find("{MESH_DIR}"), 10, common::mesh_dir_help());
+            std::fputs(usage.c_str(), stdout);
             return 0;
         } else if (arg == "--size") {
             const std::string v = value();
@@ -105,7 +104,7 @@ int run(int argc, char **argv)
         for (const char *name : {"/seed/nefertiti.off", "/common/stanford-bunny.obj"}) {
             common::Mesh mesh;
             std::string error;
-            if (common::load_mesh(std::string(KDRT_MESH_DIR) + name, mesh, error)) meshes.push_back(mesh);
+            if (common::load_mesh(common::mesh_dir() + name, mesh, error)) meshes.push_back(mesh);
         }
         if (meshes.empty()) meshes.push_back(common::torus(96, 48, 1.0, 0.35, 0.5));
     }

@@ -4,7 +4,7 @@
 //   kdrt-render-mesh [MESH] [--size WxH] [--leaf-size N] -o OUT.png
 //
 // Reads what Assimp reads (OFF, OBJ, PLY, STL, glTF, ...). Without MESH it renders the Stanford
-// bunny from KDRT_MESH_DIR when that exists, else a torus it generates itself.
+// bunny from the mesh folder (common::mesh_dir) when that exists, else a torus it generates itself.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -27,10 +27,6 @@
 
 #include <unistd.h>
 
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
-
 namespace {
 
 const char *const kUsage =
@@ -39,14 +35,14 @@ const char *const kUsage =
     "Renders MESH (any format Assimp reads: OFF, OBJ, PLY, STL, glTF, ...) with one primary ray\n"
     "per pixel traced through a kdrt kd-tree, and writes a PNG.\n"
     "\n"
-    "  MESH           mesh file; default: the Stanford bunny from the mesh folder\n"
-    "                 (" KDRT_MESH_DIR "/common/stanford-bunny.obj)\n"
-    "                 when it exists, else a generated torus\n"
+    "  MESH           mesh file; default: the Stanford bunny, common/stanford-bunny.obj in\n"
+    "                 the mesh folder, when it exists, else a generated torus\n"
     "  --size WxH     image size in pixels (default 800x600; sides 1..16384, at most 64 Mpixels)\n"
     "  --leaf-size N  kd-tree leaf size (default 4; 0 = no tree, every ray tests every triangle)\n"
     "  -o OUT.png     output file, a .png (required)\n"
     "  --help         this text\n"
     "\n"
+    "The mesh folder: {MESH_DIR}.\n"
     "Tree statistics and build and trace times go to stderr.\n"
     "Exit status: 0 success, 1 failure (unreadable mesh, unwritable output), 2 a bad command line.\n";
 
@@ -102,7 +98,9 @@ static int run(int argc, char **argv)
             return argv[++i];
         };
         if (arg == "--help" || arg == "-h") {
-            std::fputs(kUsage, stdout);
+            std::string usage = kUsage;
+            usage.replace(usage.find("{MESH_DIR}"), 10, common::mesh_dir_help());
+            std::fputs(usage.c_str(), stdout);
             return 0;
         } else if (arg == "-o") {
             out_path = value();
@@ -131,7 +129,7 @@ static int run(int argc, char **argv)
     // The mesh.
     common::Mesh mesh;
     if (mesh_path.empty()) {
-        const std::string bunny = std::string(KDRT_MESH_DIR) + "/common/stanford-bunny.obj";
+        const std::string bunny = common::mesh_dir() + "/common/stanford-bunny.obj";
         if (file_exists(bunny)) {
             mesh_path = bunny;
         } else {

@@ -5,6 +5,7 @@
 //   kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json] [--boxes OUT.obj|OUT.ply]
 //                [--depth D] [--picture OUT.png] [--size WxH]
 #include "common/atomic_file.hpp"  // common::check_replaceable
+#include "common/mesh_io.hpp"  // common::load_mesh, common::mesh_dir, common::torus
 #include "common/output.hpp"  // common::guarded_main, common::UsageError
 #include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "tree_inspect.hpp"
@@ -16,10 +17,6 @@
 #include <filesystem>
 #include <string>
 
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
-
 namespace {
 
 const char *const usage =
@@ -27,8 +24,8 @@ const char *const usage =
     "                    [--boxes OUT.obj|OUT.ply] [--depth D] [--picture OUT.png] [--size WxH]\n"
     "Builds kdrt's kd-tree over MESH (anything Assimp reads) and prints its statistics: nodes,\n"
     "leaves (and empty ones), leaves by depth and by triangle count, references per triangle, SAH\n"
-    "cost, bytes and build time. Without MESH: the Stanford bunny from KDRT_MESH_DIR, else a\n"
-    "generated torus.\n"
+    "cost, bytes and build time. Without MESH: the Stanford bunny, common/stanford-bunny.obj in the\n"
+    "mesh folder, else a generated torus.\n"
     "  --builder B     sah (the default) or median, in any case\n"
     "  --leaf-size N   most triangles in a leaf (default 4; 0: no tree)\n"
     "  --json          the statistics as JSON on standard output\n"
@@ -36,6 +33,7 @@ const char *const usage =
     "  --depth D       deepest level of boxes for --boxes and --picture (default 4)\n"
     "  --picture FILE  the mesh traced with kdrt and the boxes drawn over it, a .png\n"
     "  --size WxH      the picture's size (default 800x600)\n"
+    "The mesh folder: {MESH_DIR}.\n"
     "Exit status: 0 success, 1 failure (unreadable mesh, unwritable output), 2 a bad command line.\n";
 
 using common::UsageError;
@@ -64,7 +62,9 @@ int run(int argc, char **argv)
             return argv[++i];
         };
         if (arg == "--help" || arg == "-h") {
-            std::fputs(usage, stdout);
+            std::string text = usage;
+            text.replace(text.find("{MESH_DIR}"), 10, common::mesh_dir_help());
+            std::fputs(text.c_str(), stdout);
             return 0;
         } else if (arg == "--json") {
             json = true;
@@ -111,7 +111,7 @@ int run(int argc, char **argv)
     common::Mesh mesh;
     if (mesh_path.empty()) {
         const std::string bunny =
-            (std::filesystem::path(KDRT_MESH_DIR) / "common" / "stanford-bunny.obj").lexically_normal().string();
+            (std::filesystem::path(common::mesh_dir()) / "common" / "stanford-bunny.obj").lexically_normal().string();
         std::error_code ec;
         if (std::filesystem::is_regular_file(bunny, ec) && common::load_mesh(bunny, mesh, error)) {
             report.source = bunny + ", the default";
