@@ -36,13 +36,18 @@ std::vector<std::string> list_items(const std::string &text) {
     }
 }
 
-// A list of names, each one of `choices`, into their values in order; false when an item is none
-// of them (an empty one included).
+std::string lower(std::string text) {
+    for (char &c : text) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return text;
+}
+
+// A list of names, each one of `choices` in either case ("SAH" is "sah"), into their values in
+// order; false when an item is none of them (an empty one included).
 template <typename T>
 bool parse_choices(const std::string &text, const std::vector<std::pair<std::string, T>> &choices,
                    std::vector<T> &out) {
     out.clear();
-    for (const std::string &item : list_items(text)) {
+    for (const std::string &item : list_items(lower(text))) {
         auto found = std::find_if(choices.begin(), choices.end(), [&](const std::pair<std::string, T> &c) {
             return c.first == item;
         });
@@ -135,7 +140,7 @@ std::vector<BuildVariant> build_variants(const Options &opt) {
     return variants;
 }
 
-std::vector<uint32_t> default_leaf_sizes() {
+std::vector<uint32_t> sweep_leaf_sizes() {
     return {0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024};
 }
 
@@ -160,13 +165,19 @@ std::vector<kdrt_intersector> intersectors_for(const Options &opt) {
 
 std::string usage() {
     return "usage: kdrt-bench [options] [MESH_OR_FOLDER ...]\n"
+           "       kdrt-bench --sweep [options] [MESH_OR_FOLDER ...]\n"
            "       kdrt-bench --accuracy [options] [MESH_OR_FOLDER ...]\n"
            "       kdrt-bench --scene merged,field [options] [MESH ...]\n"
            "\n"
-           "Builds a kd-tree over each mesh for each max leaf size and traces the benchmark frame:\n"
-           "the mesh scaled to fill the view in front of a back wall, one primary ray per pixel,\n"
-           "closest hit. Writes Mesh;MaxLeafSize;ElapsedMs;... as CSV, one row per repetition;\n"
-           "SahCost is the tree's SAH cost (kdrt_tree_stats.sah_cost, with the build's costs).\n"
+           "Builds kdrt's default kd-tree (SAH builder, default quality, max leaf size 4) over each\n"
+           "mesh and traces the benchmark frame: the mesh scaled to fill the view in front of a\n"
+           "back wall, one primary ray per pixel, closest hit; then Embree 3's BVH over the same\n"
+           "rays, when this kdrt-bench was built with Embree. Writes Mesh;MaxLeafSize;ElapsedMs;...\n"
+           "as CSV, one row per build and repetition; SahCost is the tree's SAH cost\n"
+           "(kdrt_tree_stats.sah_cost, with the build's costs). Progress goes to standard error, a\n"
+           "line per mesh and build (--quiet: none).\n"
+           "--sweep runs the original course benchmark instead: the median builder at every max\n"
+           "leaf size 0 (no tree), 1, 2, 3, 4, 6, 8, 12, ..., 768, 1024, no Embree.\n"
            "Meshes: OFF, OBJ, PLY, STL, glTF files, or folders of them. Default: the original's\n"
            "meshes in ../shared/meshes/seed when present, else generated ones. hostile:KIND:N\n"
            "generates N triangles that push a kd-tree builder to its worst, KIND one of fan,\n"
@@ -178,11 +189,13 @@ std::string usage() {
            "  --repeat N          rows per mesh and leaf size (default 1); with --accuracy, timed\n"
            "                      passes per set and intersector, in turns, the fastest kept\n"
            "                      (default 3)\n"
-           "  --leaf-sizes LIST   comma-separated max leaf sizes, 0 = no tree\n"
-           "                      (default 0,1,2,3,4,6,8,12,...,768,1024; each mesh stops after the\n"
-           "                      first size at or above its triangle count)\n"
-           "  --builder LIST      median (the original's median split, the default), sah\n"
-           "                      (surface area heuristic), or both: median,sah\n"
+           "  --sweep             the original benchmark: --builder median, --leaf-sizes\n"
+           "                      0,1,2,3,4,6,8,12,...,768,1024, --compare none (each of them\n"
+           "                      given as well overrides it: --sweep --builder sah)\n"
+           "  --leaf-sizes LIST   comma-separated max leaf sizes, 0 = no tree (default 4; each mesh\n"
+           "                      stops after the first size at or above its triangle count)\n"
+           "  --builder LIST      sah (surface area heuristic, the default), median (the\n"
+           "                      original's median split), or both: median,sah\n"
            "  --sah-costs LIST    SAH cost constants KT:KI:EB (traversal cost, intersection cost,\n"
            "                      empty bonus; KT, KI > 0, 0 < EB < 1), comma-separated: the SAH\n"
            "                      builder runs once per triple, named in the SahCosts column\n"
@@ -201,9 +214,11 @@ std::string usage() {
            "  --reference-rays N  rays per frame or ray set checked against the double-precision\n"
            "                      brute-force reference (default 20000, seeded; 0: every ray)\n"
            "  --subdivide K       K levels of 4-to-1 subdivision of every mesh first\n"
-           "  --compare embree    also build and trace with Embree 3: its build on --build-threads\n"
-           "                      threads at LOW quality for --quality fast, MEDIUM for the\n"
-           "                      others (both when both are asked), its rays on --threads\n"
+           "  --compare embree|none  Embree 3 beside kdrt, or not (default: embree when this\n"
+           "                      kdrt-bench was built with it, none with --sweep): its build on\n"
+           "                      --build-threads threads at LOW quality for --quality fast,\n"
+           "                      MEDIUM for the others (both when both are asked), its rays on\n"
+           "                      --threads\n"
            "  --intersector LIST  watertight (the default), fast (Moeller-Trumbore), or both\n"
            "                      separated by a comma: a row for each, named in the last column\n"
            "  --accuracy          speed beside error counts for each intersector (see below)\n"
@@ -217,7 +232,9 @@ std::string usage() {
            "                      (default 20000)\n"
            "  -o FILE             write the CSV to FILE (default: standard output): the rows go to\n"
            "                      FILE.partial, renamed over FILE when the run ends with a row\n"
+           "  -q, --quiet         no progress lines on standard error, only what went wrong\n"
            "  --help              this text\n"
+           "Option values are names in either case: --builder SAH is --builder sah.\n"
            "\n"
            "--accuracy traces these ray sets with each intersector (default fast,watertight), each\n"
            "through a tree of the default leaf size: every mesh's frame (frame-primary, and\n"
@@ -233,7 +250,7 @@ std::string usage() {
            "kdrt_spawn_ray starts from the sample's hits (SpawnedRays: reflected, through and two\n"
            "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
            "for the same rays started exactly at the hit point, with no offset.\n"
-           "--leaf-sizes, --rays, --compare, --sah-costs and --quality do not apply.\n"
+           "--sweep, --leaf-sizes, --rays, --compare, --sah-costs, --quality and --query do not apply.\n"
            "\n"
            "--scene merged,field measures kdrt_scene against one tree over the same triangles,\n"
            "with primary and diffuse rays (the frame's, made on the one tree) through both:\n"
@@ -246,8 +263,8 @@ std::string usage() {
            "          (seeded), and the wall, as instances of a tree per mesh, against one tree of\n"
            "          every instance's triangles in world space\n"
            "Each scene is also traced with a kdrt_query of every mask bit and with a filter that\n"
-           "takes every hit, and with --compare embree through Embree, as one triangle mesh and as\n"
-           "the scene (its meshes, or a two-level scene of instances). --repeat N (default 5):\n"
+           "takes every hit, and through Embree (unless --compare none), as one triangle mesh and\n"
+           "as the scene (its meshes, or a two-level scene of instances). --repeat N (default 5):\n"
            "timed passes, each tracing every variant in turn; each row holds the median. It\n"
            "writes Scene;Layout;Query;Rays;RayCount;Triangles;StoredTriangles;Instances;BuildMs;\n"
            "TraceMs;MRaysPerSec;Versus;VersusRatio;Mismatches;EmbreeBuildMs;EmbreeMRaysPerSec;\n"
@@ -256,7 +273,6 @@ std::string usage() {
 
 bool parse_options(int argc, const char *const *argv, Options &out, std::string &error) {
     out = Options();
-    out.leaf_sizes = default_leaf_sizes();
     std::string csv_only_option;  // the last option that only the leaf-size CSV takes
     std::string not_scene_option;  // the last option that --scene has no use for
     std::string field_option;      // the last option that only --scene field takes
@@ -274,11 +290,11 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         std::string v;
         unsigned long long n = 0;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
-            arg == "--quality" || arg == "--query")
+            arg == "--quality" || arg == "--query" || arg == "--sweep")
             csv_only_option = arg;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--sah-costs" || arg == "--quality" ||
             arg == "--query" || arg == "--builder" || arg == "--intersector" || arg == "--subdivide" ||
-            arg == "--reference-rays" || arg == "--hard-rays")
+            arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep")
             not_scene_option = arg;
         if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
@@ -287,6 +303,10 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.help = true;
         } else if (arg == "--accuracy") {
             out.accuracy = true;
+        } else if (arg == "--sweep") {
+            out.sweep = true;
+        } else if (arg == "--quiet" || arg == "-q") {
+            out.quiet = true;
         } else if (arg == "--intersector") {
             if (!value(v)) return false;
             if (!parse_choices<kdrt_intersector>(
@@ -398,21 +418,23 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--rays") {
             if (!value(v)) return false;
-            if (v == "primary") out.rays = RayKind::primary;
-            else if (v == "diffuse") out.rays = RayKind::diffuse;
-            else if (v == "random") out.rays = RayKind::random;
-            else if (v == "shadow") out.rays = RayKind::shadow;
+            const std::string kind = lower(v);
+            if (kind == "primary") out.rays = RayKind::primary;
+            else if (kind == "diffuse") out.rays = RayKind::diffuse;
+            else if (kind == "random") out.rays = RayKind::random;
+            else if (kind == "shadow") out.rays = RayKind::shadow;
             else {
                 error = "--rays wants primary, diffuse, random or shadow, got '" + v + "'";
                 return false;
             }
         } else if (arg == "--compare") {
             if (!value(v)) return false;
-            if (v != "embree") {
-                error = "--compare wants embree, got '" + v + "'";
+            if (lower(v) != "embree" && lower(v) != "none") {
+                error = "--compare wants embree or none, got '" + v + "'";
                 return false;
             }
-            out.compare_embree = true;
+            out.compare_embree = lower(v) == "embree";
+            out.compare_chosen = true;
         } else if (arg == "-o" || arg == "--output") {
             if (!value(out.output)) return false;
             if (out.output.empty()) {
@@ -426,6 +448,11 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.inputs.push_back(arg);
         }
     }
+    // What the leaf-size CSV builds when not told: kdrt's default tree, or with --sweep the
+    // original's run.
+    if (out.builders.empty()) out.builders = {out.sweep ? "median" : "sah"};
+    if (out.leaf_sizes.empty()) out.leaf_sizes = out.sweep ? sweep_leaf_sizes() : std::vector<uint32_t>{kDefaultLeafSize};
+    if (out.sweep && !out.compare_chosen) out.compare_chosen = true;  // and no Embree
     if (!out.scenes.empty()) {
         if (out.accuracy) {
             error = "--scene and --accuracy are two modes: give one of them";

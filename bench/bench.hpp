@@ -30,14 +30,23 @@ struct Options {
     unsigned threads = 1;
     unsigned build_threads = 1;        // --build-threads: the SAH build's threads; 0: all cores
     unsigned repeat = 1;
-    std::vector<uint32_t> leaf_sizes;  // the original's list unless --leaf-sizes
-    std::vector<std::string> builders{"median"};  // "median" and/or "sah", in the order given
+    // --leaf-sizes; default kDefaultLeafSize, the original's list (sweep_leaf_sizes()) with --sweep
+    std::vector<uint32_t> leaf_sizes;
+    // "median" and/or "sah", in the order given; default sah, median with --sweep
+    std::vector<std::string> builders;
     std::vector<SahCosts> sah_costs;   // --sah-costs: a SAH variant each; empty: kdrt.h's defaults
     std::vector<kdrt_build_quality> qualities;  // --quality: a SAH variant each; empty: the default
     std::vector<std::string> queries{"plain"};  // --query: "plain" and/or "filter", traced in turn
     RayKind rays = RayKind::primary;
     std::string output;                // "" means stdout
+    // --compare embree or none. Not given: Embree when this kdrt-bench has it (main decides, as
+    // only it links Embree), none with --sweep; compare_chosen says which.
     bool compare_embree = false;
+    bool compare_chosen = false;
+    // --sweep: the original course benchmark, the median builder at every leaf size of
+    // sweep_leaf_sizes() and no Embree, unless --builder, --leaf-sizes or --compare say otherwise.
+    bool sweep = false;
+    bool quiet = false;                // --quiet: no progress lines on stderr, only what went wrong
     unsigned subdivide = 0;
     size_t reference_rays = 20000;     // rays checked against the reference per frame or set; 0: all
     // Ray/triangle tests to run; empty: watertight in the leaf-size CSV, both under --accuracy.
@@ -71,8 +80,10 @@ struct BuildVariant {
 };
 std::vector<BuildVariant> build_variants(const Options &opt);
 
-// The original benchmark's leaf sizes: 0 (no tree), 1, 2, 3, 4, 6, 8, ..., 768, 1024.
-std::vector<uint32_t> default_leaf_sizes();
+// The max leaf size of a run without --leaf-sizes or --sweep: kdrt's default.
+constexpr uint32_t kDefaultLeafSize = KDRT_DEFAULT_MAX_LEAF_SIZE;
+// The original benchmark's leaf sizes, --sweep's: 0 (no tree), 1, 2, 3, 4, 6, 8, ..., 768, 1024.
+std::vector<uint32_t> sweep_leaf_sizes();
 // The original's stop rule: sizes in order up to and including the first at or above the mesh's
 // triangle count (larger leaves would all be the same single leaf).
 std::vector<uint32_t> leaf_sizes_for(const std::vector<uint32_t> &sizes, uint32_t mesh_triangles);

@@ -1,6 +1,7 @@
-// kdrt-bench: the original course ray tracer's leaf-size benchmark, with an error count beside
-// every timing and Embree measured in the same run; with --accuracy, speed beside the error counts
-// of each ray/triangle test on the frame and the hard-case ray sets. See --help and bench/README.md.
+// kdrt-bench: kdrt's default tree beside Embree on the benchmark frame, or with --sweep the
+// original course ray tracer's leaf-size benchmark, with an error count beside every timing; with
+// --accuracy, speed beside the error counts of each ray/triangle test on the frame and the
+// hard-case ray sets; with --scene, kdrt_scene against one tree. See --help and bench/README.md.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -82,26 +83,39 @@ std::vector<Input> generated_inputs() {
     return inputs;
 }
 
-// Progress on stderr: a bar with ETA on a terminal, a line per mesh otherwise.
+// Standard error: a progress line before each piece of work (a mesh's rays, each build and
+// trace, each ray set), numbered out of the run's, with the time so far once it is more than a
+// moment; the same on a terminal as in a log (one line each, no bar redrawn), as Embree's and
+// tinybvh's benchmarks print theirs. --quiet keeps only the notes: what went wrong, and results.
 struct Progress {
     size_t total = 0, done = 0;
-    bool terminal = isatty(STDERR_FILENO) != 0;
+    bool quiet = false;
     common::Stopwatch clock;
+    // "kdrt-bench: [2/3] BUNNY: sah leaf 4: tracing 800x800 primary rays"
     void step(const std::string &what) {
         ++done;
-        if (!terminal) return;
-        double elapsed = clock.ms() / 1000.0, eta = done ? elapsed / done * double(total - done) : 0.0;
-        int filled = total ? int(30.0 * done / total) : 30;
-        std::fprintf(stderr, "\r[%-30s] %zu/%zu  ETA %5.0f s  %-40.40s", std::string(size_t(filled), '#').c_str(), done,
-                     total, eta, what.c_str());
-        if (done == total) std::fputc('\n', stderr);
+        status("[" + std::to_string(done) + "/" + std::to_string(total) + "] " + what);
+    }
+    // A progress line without a number: "kdrt-bench: WHAT", and "(12 s so far)" after a second.
+    void status(const std::string &what) {
+        if (quiet) return;
+        const double seconds = clock.ms() / 1000.0;
+        char so_far[48] = "";
+        if (seconds >= 1) std::snprintf(so_far, sizeof so_far, " (%.0f s so far)", seconds);
+        std::fprintf(stderr, "kdrt-bench: %s%s\n", what.c_str(), so_far);
         std::fflush(stderr);
     }
     void note(const std::string &line) {
-        std::fprintf(stderr, terminal ? "\r%-110s\n" : "%s\n", line.c_str());
+        std::fprintf(stderr, "%s\n", line.c_str());
         std::fflush(stderr);
     }
 };
+
+// "800x800 primary rays", as the progress lines name a frame's rays.
+std::string frame_rays(const kb::Options &opt, kb::RayKind kind) {
+    const char *names[] = {"primary", "diffuse", "random", "shadow"};
+    return std::to_string(opt.width) + "x" + std::to_string(opt.height) + " " + names[int(kind)] + " rays";
+}
 
 // expand_inputs(), each folder without a mesh file noted and counted as a failure.
 std::vector<std::string> mesh_files(const std::vector<std::string> &args, Progress &progress, int &failures) {
@@ -230,7 +244,7 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
     const uint32_t seed = 1;
     const double offsets[] = {1e3, 1e5, 1e7};
     common::Stopwatch wall;
-    progress.note("kdrt-bench --accuracy: generating the watertight and hard-case ray sets");
+    progress.status("--accuracy: generating the watertight and hard-case ray sets");
     std::vector<kb::AccuracySet> extra = kb::watertight_sets(opt.hard_rays, seed);
     for (kb::AccuracySet &s : kb::hard_case_sets(opt.hard_rays, seed)) extra.push_back(std::move(s));
     progress.total = inputs.size() * (2 + std::size(offsets)) + extra.size();
@@ -240,6 +254,8 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
     bool written = csv.line(kb::accuracy_csv_header(), write_error);
     auto run = [&](const kb::AccuracySet &set) {
         if (!written) return;  // the CSV cannot be written: the run is over
+        progress.step(set.set + " " + set.scene + ": " + std::to_string(set.rays.size()) + " rays, " +
+                      std::to_string(intersectors.size()) + " intersector(s)");
         const size_t first = rows.size();
         if (!kb::run_accuracy_set(set, intersectors, opt.reference_rays, opt.threads, opt.repeat, seed, true, rows, error)) {
             progress.note("kdrt-bench: " + error);
@@ -250,7 +266,6 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
             if (!rows[i].errors.first.empty())
                 progress.note(set.set + " " + set.scene + " " + rows[i].intersector + ": first error: " + rows[i].errors.first);
         }
-        progress.step(set.set + " " + set.scene);
     };
     for (const Input &in : inputs) {
         if (!written) break;
@@ -342,8 +357,8 @@ bool run_scene(const kb::Options &opt, const kb::SceneLayout &layout, const kdrt
     const double peer_scene_ms = !embree ? 0 : instanced ? peer_scene.median_commit_ms(layout, commits) : peer_scene.build_ms();
     char built_in[160];
     std::snprintf(built_in, sizeof built_in, "built in %.1f ms (one tree), %.1f ms (kdrt_scene_build)", tree_ms, scene_ms);
-    progress.note("kdrt-bench: --scene " + layout.name + ": " + std::to_string(geometries.size()) + " geometries, " +
-                  std::to_string(world.triangle_count) + " triangles; " + built_in);
+    progress.status("--scene " + layout.name + ": " + std::to_string(geometries.size()) + " geometries, " +
+                    std::to_string(world.triangle_count) + " triangles; " + built_in);
 
     const std::string tree_layout = instanced ? "flattened" : "merged", scene_layout = instanced ? "instanced" : "meshes";
     const double tolerance = instanced ? 1e-4 : 0;  // instances are exact to float rounding only
@@ -378,11 +393,11 @@ bool run_scene(const kb::Options &opt, const kb::SceneLayout &layout, const kdrt
             }, {}, {}});
         }
         // Every variant in turn, pass after pass, so that a busy moment of the machine falls on all.
-        for (unsigned pass = 0; pass < opt.repeat; ++pass) {
+        progress.step("--scene " + layout.name + ": tracing " + frame_rays(opt, kind) + " through " +
+                      std::to_string(variants.size()) + " variants, " + std::to_string(opt.repeat) +
+                      (opt.repeat == 1 ? " pass" : " passes"));
+        for (unsigned pass = 0; pass < opt.repeat; ++pass)
             for (SceneVariant &v : variants) v.ms.push_back(v.trace(v.hits));
-            progress.step(layout.name + " " + (kind == kb::RayKind::primary ? "primary" : "diffuse") + " pass " +
-                          std::to_string(pass + 1));
-        }
 
         const SceneVariant &base = variants[0], &plain = variants[1];
         for (size_t k = 0; k < 4; ++k) {
@@ -440,6 +455,7 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
         for (Input &in : generated_inputs()) meshes.push_back(std::move(in.mesh));
     }
     const std::vector<std::string> files = mesh_files(args, progress, failures);
+    if (!files.empty()) progress.status("loading " + std::to_string(files.size()) + " mesh file(s)");
     for (const std::string &path : files) {
         common::Mesh mesh;
         if (!common::load_mesh(path, mesh, error)) {
@@ -460,7 +476,7 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
     common::ThreadScheduler build_pool(opt.build_threads);
     kdrt_build_options options = kdrt_default_build_options();
     if (build_pool.threads() > 1) options.scheduler = build_pool.hooks();
-    progress.total = opt.scenes.size() * 2 * opt.repeat;
+    progress.total = opt.scenes.size() * 2;
     for (const std::string &name : opt.scenes) {
         kb::SceneLayout layout;
         if (name == "merged") {
@@ -472,8 +488,7 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
                 simplified.push_back(kb::clustered(kb::unit_sized(mesh), opt.instance_triangles));
                 counts += (counts.empty() ? "" : ", ") + mesh.name + " " + std::to_string(simplified.back().triangle_count());
             }
-            progress.note("kdrt-bench: --scene field: " + std::to_string(opt.instances) + " instances of " + counts +
-                          " triangles");
+            progress.status("--scene field: " + std::to_string(opt.instances) + " instances of " + counts + " triangles");
             layout = kb::field_layout(simplified, opt.instances, 1, opt.instance_spacing);
         }
         if (!run_scene(opt, layout, options, csv, progress, failures, write_error)) {
@@ -506,6 +521,14 @@ int run(int argc, char **argv) {
                              "(install libembree-dev and configure again)\n");
         return 2;
     }
+    Progress progress;
+    progress.quiet = opt.quiet;
+    if (!opt.compare_chosen && !opt.accuracy) {  // Embree beside kdrt where this kdrt-bench has it
+        opt.compare_embree = kb::embree_available();
+        if (!opt.compare_embree)
+            progress.status("built without Embree: kdrt's rows only (install libembree-dev and configure again "
+                            "to measure Embree beside kdrt)");
+    }
     // Open the output before any work, so an unwritable path costs nothing.
     Csv csv;
     if (!csv.open(opt.output, error)) {
@@ -513,7 +536,6 @@ int run(int argc, char **argv) {
         return 1;
     }
 
-    Progress progress;
     if (!opt.scenes.empty()) return run_scenes(opt, csv, progress);
     int failures = 0;
     std::vector<Input> inputs;
@@ -524,6 +546,7 @@ int run(int argc, char **argv) {
         inputs = generated_inputs();
     }
     const std::vector<std::string> files = mesh_files(args, progress, failures);
+    if (!files.empty()) progress.status("loading " + std::to_string(files.size()) + " mesh file(s)");
     for (const std::string &path : files) {
         Input in;
         in.label = upper_stem(path);
@@ -571,10 +594,11 @@ int run(int argc, char **argv) {
         if (low) peer_qualities.push_back(kb::PeerQuality::low);
         if (medium) peer_qualities.push_back(kb::PeerQuality::medium);
     }
-    for (const Input &in : inputs)
-        progress.total += opt.repeat * (kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() *
-                                            variants.size() +
-                                        peer_qualities.size());
+    for (const Input &in : inputs)  // a progress line per build, before its repetitions
+        progress.total += kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() *
+                              variants.size() +
+                          peer_qualities.size();
+    const std::string repetitions = opt.repeat > 1 ? ", " + std::to_string(opt.repeat) + " times" : "";
 
     std::string write_error;
     const auto write_failed = [&] {
@@ -602,6 +626,9 @@ int run(int argc, char **argv) {
         // The reference for a fixed sample of the rays, computed once for every row of this mesh.
         const oracle::Oracle oracle(scene.geometry);
         const std::vector<size_t> sample = kb::reference_sample(rays.size(), opt.reference_rays, seed);
+        progress.status(in.label + ": " + std::to_string(scene.geometry.triangle_count()) + " triangles, " +
+                        frame_rays(opt, opt.rays) + ": the reference answers of " + std::to_string(sample.size()) +
+                        " of them");
         std::vector<kdrt_ray> sampled;
         for (size_t i : sample) sampled.push_back(rays[i]);
         const std::vector<oracle::Reference> refs = oracle::reference_all(oracle, sampled);
@@ -618,6 +645,13 @@ int run(int argc, char **argv) {
         for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
             for (kdrt_intersector intersector : intersectors)
                 for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                    if (rep == 0)
+                        progress.step(in.label + ": " + variant.builder +
+                                      (opt.qualities.empty() ? "" : " " + variant.quality) +
+                                      (opt.sah_costs.empty() ? "" : " " + variant.sah_costs) + " leaf " +
+                                      std::to_string(leaf) +
+                                      (opt.intersectors.empty() ? "" : std::string(" ") + kb::intersector_name(intersector)) +
+                                      ": building and tracing " + frame_rays(opt, opt.rays) + repetitions);
                     kdrt_build_options options = variant.options;
                     options.max_leaf_size = leaf;
                     options.intersector = intersector;
@@ -663,12 +697,12 @@ int run(int argc, char **argv) {
                         }
                     }
                     kdrt_tree_free(tree);
-                    progress.step(in.label + " " + variant.builder + (variant.quality.empty() ? "" : " " + variant.quality) +
-                                  (variant.sah_costs.empty() ? "" : " " + variant.sah_costs) +
-                                  " leaf " + std::to_string(leaf) + " " + row.intersector);
                 }
         for (kb::PeerQuality quality : peer_qualities)
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                if (rep == 0)
+                    progress.step(in.label + ": embree " + kb::peer_quality_name(quality) + ": building and tracing " +
+                                  frame_rays(opt, opt.rays) + repetitions);
                 kb::PeerRun peer;
                 if (!kb::embree_run(scene.geometry, rays, opt.threads, shadow, quality, opt.build_threads, peer, error)) {
                     progress.note("kdrt-bench: " + in.label + ": Embree: " + error);
@@ -688,7 +722,6 @@ int run(int argc, char **argv) {
                 row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, peer.occluded, row.triangles)
                                         : kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
                 if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
-                progress.step(in.label + " embree " + row.quality);
             }
     }
     if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");

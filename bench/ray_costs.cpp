@@ -22,22 +22,22 @@
 #include <string>
 #include <vector>
 
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
-
 namespace {
 
 const char *const kUsage =
     "usage: kdrt-ray-costs [MESH...] [--size WxH] [--repeat N] [--subdivide N]\n"
     "\n"
-    "For each mesh (default: the seed nefertiti and the Stanford bunny from the mesh folder\n"
-    KDRT_MESH_DIR ", else a generated torus), prints a Markdown table: per class of ray, the\n"
-    "rays in it, the inner nodes, leaves (empty ones), and triangle tests a ray takes on average,\n"
-    "and its time in ns (thread CPU time, best of N passes). SAH tree, leaf size 4, one thread.\n"
+    "For each mesh (default: the seed nefertiti and the Stanford bunny from the mesh folder, else\n"
+    "a generated torus), prints a Markdown table: per class of ray, the rays in it, the inner\n"
+    "nodes, leaves (empty ones), and triangle tests a ray takes on average, and its time in ns\n"
+    "(thread CPU time, best of N passes). SAH tree, leaf size 4, one thread.\n"
     "  --size WxH   the frame (default 400x400)\n"
     "  --repeat N   timed passes per class, the fastest kept (default 5)\n"
-    "  --subdivide N  split every triangle in 4, N times, before building (default 0)\n";
+    "  --subdivide N  split every triangle in 4, N times, before building (default 0)\n"
+    "The mesh folder: {MESH_DIR}.\n"
+    "Exit status: 0 success, 1 failure (unreadable mesh, lost output), 2 a bad command line.\n";
+
+using common::UsageError;
 
 double thread_cpu_ns()
 {
@@ -75,17 +75,26 @@ int run(int argc, char **argv)
     unsigned width = 400, height = 400, repeat = 5, subdivide = 0;
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
+        auto value = [&]() -> std::string {
+            if (i + 1 >= argc) throw UsageError{arg + " needs a value (see --help)"};
+            return argv[++i];
+        };
         if (arg == "--help" || arg == "-h") {
-            std::fputs(kUsage, stdout);
+            std::string usage = kUsage;
+            usage.replace(usage.find("{MESH_DIR}"), 10, common::mesh_dir_help());
+            std::fputs(usage.c_str(), stdout);
             return 0;
-        } else if (arg == "--size" && i + 1 < argc) {
-            if (!common::parse_size(std::string(argv[++i]), 8192, width, height)) return fail(std::string("--size wants WxH, got '") + argv[i] + "'");
-        } else if (arg == "--repeat" && i + 1 < argc) {
-            if (!common::parse_count(std::string(argv[++i]), 1000, repeat) || repeat == 0) return fail(std::string("--repeat wants 1 to 1000, got '") + argv[i] + "'");
-        } else if (arg == "--subdivide" && i + 1 < argc) {
-            if (!common::parse_count(std::string(argv[++i]), 4, subdivide)) return fail(std::string("--subdivide wants 0 to 4, got '") + argv[i] + "'");
-        } else if (!arg.empty() && arg[0] == '-') {
-            return fail("unknown option '" + arg + "' (--help lists them)");
+        } else if (arg == "--size") {
+            const std::string v = value();
+            if (!common::parse_size(v, 8192, width, height)) throw UsageError{"--size wants WxH, got '" + v + "'"};
+        } else if (arg == "--repeat") {
+            const std::string v = value();
+            if (!common::parse_count(v, 1000, repeat) || repeat == 0) throw UsageError{"--repeat wants 1 to 1000, got '" + v + "'"};
+        } else if (arg == "--subdivide") {
+            const std::string v = value();
+            if (!common::parse_count(v, 4, subdivide)) throw UsageError{"--subdivide wants 0 to 4, got '" + v + "'"};
+        } else if (arg.size() > 1 && arg[0] == '-') {
+            throw UsageError{"unknown option '" + arg + "' (see --help)"};
         } else {
             paths.push_back(arg);
         }
@@ -95,14 +104,14 @@ int run(int argc, char **argv)
         for (const char *name : {"/seed/nefertiti.off", "/common/stanford-bunny.obj"}) {
             common::Mesh mesh;
             std::string error;
-            if (common::load_mesh(std::string(KDRT_MESH_DIR) + name, mesh, error)) meshes.push_back(mesh);
+            if (common::load_mesh(common::mesh_dir() + name, mesh, error)) meshes.push_back(mesh);
         }
         if (meshes.empty()) meshes.push_back(common::torus(96, 48, 1.0, 0.35, 0.5));
     }
     for (const std::string &path : paths) {
         common::Mesh mesh;
         std::string error;
-        if (!common::load_mesh(path, mesh, error)) return fail(error);
+        if (!common::load_mesh(path, mesh, error)) return fail("cannot read '" + path + "': " + error);
         meshes.push_back(mesh);
     }
 
@@ -114,7 +123,8 @@ int run(int argc, char **argv)
         const kdrt_triangles view = scene.geometry.view();
         kdrt_build_options options = kdrt_default_build_options();
         kdrt_tree *tree = nullptr;
-        if (kdrt_tree_build(&view, &options, &tree, nullptr) != KDRT_SUCCESS) return fail("cannot build " + scene.name);
+        const kdrt_result built = kdrt_tree_build(&view, &options, &tree, nullptr);
+        if (built != KDRT_SUCCESS) return fail("cannot build the tree over " + scene.name + ": " + kdrt_result_string(built));
         const auto primary = kb::make_rays(scene, kb::RayKind::primary, width, height, tree, 1);
         const auto diffuse = kb::make_rays(scene, kb::RayKind::diffuse, width, height, tree, 1);
         // The wall's two triangles come last: a hit below mesh_triangles is on the mesh.
@@ -154,5 +164,5 @@ int run(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
-    return common::close_stdout("kdrt-ray-costs", run(argc, argv));
+    return common::guarded_main("kdrt-ray-costs", [&] { return run(argc, argv); });
 }

@@ -8,7 +8,7 @@ usage: bench/tune_sah.py [options] MESH_OR_FOLDER ...
        bench/tune_sah.py --from PRIMARY.csv DIFFUSE.csv
 
 It runs kdrt-bench twice (primary rays, then --rays diffuse), each run building every mesh once
-per setting (--builder sah --sah-costs GRID --leaf-sizes 4), tracing on one thread. Repetitions
+per setting (--builder sah --sah-costs GRID --leaf-sizes 4 --compare none), tracing on one thread. Repetitions
 (--repeat) give several rows per mesh and setting; each figure is their median, as
 bench/plot_bench.py takes it. Build ms is the median over the rows of both runs. Mismatches
 (summed over both runs) must be 0 everywhere; a setting with any is marked.
@@ -48,7 +48,7 @@ def geomean(values):
 
 
 def run_bench(bench, meshes, kind, grid, args, out_csv):
-    cmd = [bench, "--builder", "sah", "--leaf-sizes", str(args.leaf_size), "--sah-costs", ",".join(grid),
+    cmd = [bench, "--builder", "sah", "--leaf-sizes", str(args.leaf_size), "--sah-costs", ",".join(grid), "--compare", "none",
            "--size", args.size, "--repeat", str(args.repeat), "--reference-rays", str(args.reference_rays), "-o", out_csv]
     if kind == "diffuse":
         cmd += ["--rays", "diffuse"]

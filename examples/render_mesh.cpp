@@ -4,13 +4,13 @@
 //   kdrt-render-mesh [MESH] [--size WxH] [--leaf-size N] -o OUT.png
 //
 // Reads what Assimp reads (OFF, OBJ, PLY, STL, glTF, ...). Without MESH it renders the Stanford
-// bunny from KDRT_MESH_DIR when that exists, else a torus it generates itself.
+// bunny from the mesh folder (common::mesh_dir) when that exists, else a torus it generates itself.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
-#include "common/atomic_file.hpp"      // common::write_file_atomically
+#include "common/atomic_file.hpp"      // common::check_replaceable, common::write_file_atomically
 #include "common/mesh_io.hpp"          // common::load_mesh (Assimp, guarded against malformed files), common::torus
-#include "common/output.hpp"           // common::close_stdout
+#include "common/output.hpp"           // common::guarded_main, common::UsageError
 #include "common/parse.hpp"            // common::parse_count, common::parse_size
 #include "common/thread_scheduler.hpp" // common::ThreadScheduler: the SAH build's tasks on every core
 #include "common/timing.hpp"           // common::Stopwatch, common::timed_parallel
@@ -19,20 +19,13 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <exception>
-#include <new>
 #include <string>
 #include <vector>
 
 #include <unistd.h>
-
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
 
 namespace {
 
@@ -42,19 +35,31 @@ const char *const kUsage =
     "Renders MESH (any format Assimp reads: OFF, OBJ, PLY, STL, glTF, ...) with one primary ray\n"
     "per pixel traced through a kdrt kd-tree, and writes a PNG.\n"
     "\n"
-    "  MESH           mesh file; default: the Stanford bunny from the mesh folder\n"
-    "                 (" KDRT_MESH_DIR "/common/stanford-bunny.obj)\n"
-    "                 when it exists, else a generated torus\n"
+    "  MESH           mesh file; default: the Stanford bunny, common/stanford-bunny.obj in\n"
+    "                 the mesh folder, when it exists, else a generated torus\n"
     "  --size WxH     image size in pixels (default 800x600; sides 1..16384, at most 64 Mpixels)\n"
     "  --leaf-size N  kd-tree leaf size (default 4; 0 = no tree, every ray tests every triangle)\n"
-    "  -o OUT.png     output file (required)\n"
+    "  -o OUT.png     output file, a .png (required)\n"
     "  --help         this text\n"
     "\n"
-    "Tree statistics and build and trace times go to stderr.\n";
+    "The mesh folder: {MESH_DIR}.\n"
+    "Tree statistics and build and trace times go to stderr.\n"
+    "Exit status: 0 success, 1 failure (unreadable mesh, unwritable output), 2 a bad command line.\n";
 
+using common::UsageError;
 using common::Vec3;
 
 bool file_exists(const std::string &path) { return !path.empty() && access(path.c_str(), R_OK) == 0; }
+
+// Whether path's name ends in .png, in any case.
+bool named_png(const std::string &path)
+{
+    const size_t n = path.size();
+    if (n < 4) return false;
+    std::string tail = path.substr(n - 4);
+    for (char &c : tail) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return tail == ".png";
+}
 
 // Encodes the PNG in memory and writes it through a temporary file and a rename, so a failed run
 // leaves no output file behind.
@@ -88,42 +93,43 @@ static int run(int argc, char **argv)
 
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
+        auto value = [&]() -> std::string {
+            if (i + 1 >= argc) throw UsageError{arg + " needs a value (see --help)"};
+            return argv[++i];
+        };
         if (arg == "--help" || arg == "-h") {
-            std::fputs(kUsage, stdout);
+            std::string usage = kUsage;
+            usage.replace(usage.find("{MESH_DIR}"), 10, common::mesh_dir_help());
+            std::fputs(usage.c_str(), stdout);
             return 0;
         } else if (arg == "-o") {
-            if (!has_value) return fail("-o needs a file name");
-            out_path = argv[++i];
+            out_path = value();
         } else if (arg == "--size") {
-            if (!has_value) return fail("--size needs WxH, e.g. --size 800x600");
-            if (!common::parse_size(std::string(argv[++i]), 16384, width, height))
-                return fail(std::string("bad --size '") + argv[i] + "': expected WxH with each side 1..16384");
+            const std::string v = value();
+            if (!common::parse_size(v, 16384, width, height) || uint64_t(width) * uint64_t(height) > (uint64_t(1) << 26))
+                throw UsageError{"bad --size '" + v + "': expected WxH, each side 1..16384, at most 64 Mpixels"};
         } else if (arg == "--leaf-size") {
-            if (!has_value) return fail("--leaf-size needs a number");
-            if (!common::parse_count(std::string(argv[++i]), 0xFFFFFFFFul, leaf_size))
-                return fail(std::string("bad --leaf-size '") + argv[i] + "': expected a whole number");
+            const std::string v = value();
+            if (!common::parse_count(v, 0xFFFFFFFFul, leaf_size))
+                throw UsageError{"bad --leaf-size '" + v + "': expected a whole number"};
         } else if (arg.size() > 1 && arg[0] == '-') {
-            std::fputs(kUsage, stderr);
-            return fail("unknown option " + arg);
+            throw UsageError{"unknown option '" + arg + "' (see --help)"};
         } else if (mesh_path.empty()) {
             mesh_path = arg;
         } else {
-            return fail("more than one mesh given: " + mesh_path + " and " + arg);
+            throw UsageError{"one mesh at most ('" + mesh_path + "', then '" + arg + "')"};
         }
     }
-    if (out_path.empty()) {
-        std::fputs(kUsage, stderr);
-        return fail("no output file: give -o OUT.png");
-    }
-    if (uint64_t(width) * uint64_t(height) > (uint64_t(1) << 26))
-        return fail("--size " + std::to_string(width) + "x" + std::to_string(height) +
-                    " is more than 64 Mpixels");
+    if (out_path.empty()) throw UsageError{"no output file: give -o OUT.png"};
+    if (!named_png(out_path)) throw UsageError{"cannot write '" + out_path + "': it writes PNG only, named .png"};
+    // An output that cannot be written is refused now, not after the build and the trace.
+    std::string error;
+    if (!common::check_replaceable(out_path, error)) return fail(error);
 
     // The mesh.
     common::Mesh mesh;
     if (mesh_path.empty()) {
-        const std::string bunny = std::string(KDRT_MESH_DIR) + "/common/stanford-bunny.obj";
+        const std::string bunny = common::mesh_dir() + "/common/stanford-bunny.obj";
         if (file_exists(bunny)) {
             mesh_path = bunny;
         } else {
@@ -132,9 +138,7 @@ static int run(int argc, char **argv)
         }
     }
     if (!mesh_path.empty()) {
-        std::string error;
-        if (!file_exists(mesh_path)) return fail("cannot read mesh " + mesh_path + ": " + std::strerror(errno));
-        if (!common::load_mesh(mesh_path, mesh, error)) return fail("cannot load mesh " + mesh_path + ": " + error);
+        if (!common::load_mesh(mesh_path, mesh, error)) return fail("cannot read '" + mesh_path + "': " + error);
         std::fprintf(stderr, "mesh: %s\n", mesh_path.c_str());
     }
 
@@ -151,18 +155,21 @@ static int run(int argc, char **argv)
     const kdrt_result built = kdrt_tree_build(&view, &options, &tree, &report);
     const double build_seconds = build_clock.ms() / 1000;
     if (built != KDRT_SUCCESS) {
-        std::string message = "cannot build the tree: " + std::string(kdrt_result_string(built));
-        const uint32_t t = report.invalid_triangle; // the corners of the first bad triangle
-        if (t != KDRT_INVALID_ID) message += "\n  first bad triangle: " + std::to_string(t);
+        // One line: the reason, and the corners of the first bad triangle.
+        std::string message = "cannot build the tree over '" + (mesh_path.empty() ? mesh.name : mesh_path) +
+                              "': " + kdrt_result_string(built);
+        const uint32_t t = report.invalid_triangle;
+        if (t != KDRT_INVALID_ID) message += "; first bad triangle " + std::to_string(t);
         for (int k = 0; k < 3 && t < view.triangle_count; ++k) {
-            const uint32_t v = mesh.indices[size_t(t) * 3 + size_t(k)];
-            char line[160];
+            const uint32_t v = mesh.vertex(t, k);
+            char corner[160];
             if (v < view.vertex_count)
-                std::snprintf(line, sizeof line, "\n  vertex %u: (%g, %g, %g)", v, double(mesh.positions[size_t(v) * 3]),
-                              double(mesh.positions[size_t(v) * 3 + 1]), double(mesh.positions[size_t(v) * 3 + 2]));
+                std::snprintf(corner, sizeof corner, "%s vertex %u (%g, %g, %g)", k ? "," : ":", v,
+                              double(mesh.positions[size_t(v) * 3]), double(mesh.positions[size_t(v) * 3 + 1]),
+                              double(mesh.positions[size_t(v) * 3 + 2]));
             else
-                std::snprintf(line, sizeof line, "\n  vertex %u: out of range", v);
-            message += line;
+                std::snprintf(corner, sizeof corner, "%s vertex %u out of range", k ? "," : ":", v);
+            message += corner;
         }
         return fail(message);
     }
@@ -207,8 +214,10 @@ static int run(int argc, char **argv)
             const double sx = (2.0 * (x + 0.5) / width - 1.0) * tan_half * aspect;
             const double sy = (1.0 - 2.0 * (double(y) + 0.5) / height) * tan_half;
             const Vec3 d = normalize(forward + sx * right + sy * up);
-            kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f,
-                            {float(d.x), float(d.y), float(d.z)}, INFINITY, 0};
+            kdrt_ray ray = {};  // tmin 0, and the walk starts at the root
+            ray.org[0] = float(eye.x), ray.org[1] = float(eye.y), ray.org[2] = float(eye.z);
+            ray.dir[0] = float(d.x), ray.dir[1] = float(d.y), ray.dir[2] = float(d.z);
+            ray.tmax = INFINITY;
             kdrt_hit hit;
             float n[3];
             double r = 0.30, g = 0.30, b = 0.32; // background
@@ -232,7 +241,6 @@ static int run(int argc, char **argv)
                  100.0 * double(hits.load()) / rays);
     kdrt_tree_free(tree);
 
-    std::string error;
     if (!write_png(out_path, width, height, rgb, error)) return fail(error);
     std::fprintf(stderr, "wrote %s\n", out_path.c_str());
     return 0;
@@ -240,13 +248,5 @@ static int run(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
-    int status = 1;
-    try {
-        status = run(argc, argv);
-    } catch (const std::bad_alloc &) {
-        status = fail("out of memory");
-    } catch (const std::exception &e) {
-        status = fail(e.what());
-    }
-    return common::close_stdout("kdrt-render-mesh", status);
+    return common::guarded_main("kdrt-render-mesh", [&] { return run(argc, argv); });
 }

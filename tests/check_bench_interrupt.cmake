@@ -5,7 +5,7 @@ include("${CMAKE_CURRENT_LIST_DIR}/bench_csv_rows.cmake")
 file(REMOVE "${OUT}.partial")
 file(WRITE "${OUT}" "the old results\n")
 execute_process(
-  COMMAND "${BENCH}" --size 64x64 --leaf-sizes 1,2,4 --repeat 1024 --reference-rays 16 -o "${OUT}"
+  COMMAND "${BENCH}" --sweep --size 64x64 --leaf-sizes 1,2,4 --repeat 1024 --reference-rays 16 -o "${OUT}"
   TIMEOUT 4
   RESULT_VARIABLE result)
 if(result EQUAL 0)

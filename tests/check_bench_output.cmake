@@ -21,7 +21,7 @@ endfunction()
 file(REMOVE "${partial}")
 file(WRITE "${out}" "${old}")
 bench_fails("no row was written; '[^']*bench_output.csv' is as it was"
-            "${BENCH}" --size 8x8 --leaf-sizes 1 /no/such/mesh.obj)
+            "${BENCH}" --sweep --size 8x8 --leaf-sizes 1 /no/such/mesh.obj)
 if(EXISTS "${partial}")
   message(FATAL_ERROR "${partial} is left")
 endif()
@@ -30,20 +30,20 @@ endif()
 # OUT is left as it was, and OUT.partial holds the whole rows written before.
 bench_fails("cannot write '[^']*partial': File too large; the [1-9][0-9]* row\\(s\\) so far are in '[^']*bench_output.csv.partial', and '[^']*bench_output.csv' is as it was"
             bash -c "ulimit -f 1 && trap '' XFSZ && exec \"$@\"" bash
-            "${BENCH}" --size 8x8 --leaf-sizes 1,2,3,4,6,8 --repeat 4 "${MESH}")
+            "${BENCH}" --sweep --size 8x8 --leaf-sizes 1,2,3,4,6,8 --repeat 4 "${MESH}")
 check_whole_rows("${partial}" 1)
 
 # A read-only OUT is refused before any work, root or not.
 file(REMOVE "${partial}")
 file(CHMOD "${out}" PERMISSIONS OWNER_READ GROUP_READ WORLD_READ)
-bench_fails("cannot write '[^']*bench_output.csv': it is read-only" "${BENCH}" --size 8x8 --leaf-sizes 1 "${MESH}")
+bench_fails("cannot write '[^']*bench_output.csv': it is read-only" "${BENCH}" --sweep --size 8x8 --leaf-sizes 1 "${MESH}")
 file(CHMOD "${out}" PERMISSIONS OWNER_READ OWNER_WRITE GROUP_READ WORLD_READ)
 if(EXISTS "${partial}")
   message(FATAL_ERROR "${partial} is left")
 endif()
 
 # A run that ends well replaces OUT through the partial file, which is then gone.
-execute_process(COMMAND "${BENCH}" --size 8x8 --leaf-sizes 1,2 "${MESH}" -o "${out}" RESULT_VARIABLE result)
+execute_process(COMMAND "${BENCH}" --sweep --size 8x8 --leaf-sizes 1,2 "${MESH}" -o "${out}" RESULT_VARIABLE result)
 if(NOT result EQUAL 0)
   message(FATAL_ERROR "a good run exited ${result}")
 endif()

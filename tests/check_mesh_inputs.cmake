@@ -1,10 +1,12 @@
 # Gives a program a mesh path it cannot read and checks that it fails with a one-line message
 # saying why, without waiting: ctest's TIMEOUT fails a program that blocks on the FIFO.
-#   cmake -DTOOL=inspect|bench|render_scene|render_set -DEXE=<program> -DKIND=<kind> -DDIR=<folder>
-#         -P check_mesh_inputs.cmake
-# KIND: fifo, device (/dev/zero), directory, missing, or claims (an OFF file of 34 bytes whose
-# header claims a billion vertices and faces). render_scene names the mesh in a scene file,
-# render_set with --set MESH=.
+#   cmake -DTOOL=<tool> -DEXE=<program> -DKIND=<kind> -DDIR=<folder> -P check_mesh_inputs.cmake
+# TOOL: inspect, bench, render_scene, render_set, render_mesh, ray_costs or construction (whose
+# input is a triangle file). KIND: fifo, device (/dev/zero), directory, missing, or claims (an
+# OFF file of 34 bytes whose header claims a billion vertices and faces). render_scene names the
+# mesh in a scene file, render_set with --set MESH=. kdrt-inspect, kdrt-render-mesh,
+# kdrt-ray-costs and kdrt-construction must fail with status 1 and the one line
+# "PROGRAM: cannot read 'PATH': REASON".
 file(MAKE_DIRECTORY ${DIR})
 set(mesh ${DIR}/${KIND}.off)
 file(REMOVE_RECURSE ${mesh})
@@ -29,6 +31,8 @@ elseif(KIND STREQUAL "missing")
   set(expect "no such file")
   if(TOOL STREQUAL "render_scene")
     set(expect "cannot be read: No such file or directory")
+  elseif(TOOL STREQUAL "construction")
+    set(expect "No such file or directory")
   endif()
 elseif(KIND STREQUAL "claims")
   file(WRITE ${mesh} "OFF\n1000000000 1000000000 0\n0 0 0\n")
@@ -37,8 +41,19 @@ else()
   message(FATAL_ERROR "unknown KIND '${KIND}'")
 endif()
 
+set(program "")  # the tools held to "PROGRAM: cannot read 'PATH': REASON"
 if(TOOL STREQUAL "inspect")
   set(command ${EXE} ${mesh})
+  set(program kdrt-inspect)
+elseif(TOOL STREQUAL "render_mesh")
+  set(command ${EXE} ${mesh} --size 8x6 -o ${DIR}/${KIND}.png)
+  set(program kdrt-render-mesh)
+elseif(TOOL STREQUAL "ray_costs")
+  set(command ${EXE} --size 8x8 --repeat 1 ${mesh})
+  set(program kdrt-ray-costs)
+elseif(TOOL STREQUAL "construction")
+  set(command ${EXE} ${mesh} -o ${DIR}/${KIND}.json)
+  set(program kdrt-construction)
 elseif(TOOL STREQUAL "bench")
   set(command ${EXE} --size 8x8 --leaf-sizes 1 ${mesh} -o ${DIR}/${KIND}.csv)
 elseif(TOOL STREQUAL "render_scene")
@@ -58,5 +73,12 @@ if(status EQUAL 0)
 endif()
 if(NOT "${out}${err}" MATCHES "${expect}")
   message(FATAL_ERROR "${TOOL} on ${mesh} (${KIND}) did not say '${expect}' (exit ${status}):\n${out}${err}")
+endif()
+if(program)
+  string(REGEX REPLACE "([][+.*()^$?|\\\\])" "\\\\\\1" quoted "${mesh}")
+  if(NOT status EQUAL 1 OR NOT "${err}" MATCHES "^${program}: cannot read '${quoted}': ${expect}[^\n]*\n$")
+    message(FATAL_ERROR "${TOOL} on ${mesh} (${KIND}): not exit 1 and the one line "
+                        "\"${program}: cannot read '${mesh}': ...\" (exit ${status}):\n${err}")
+  endif()
 endif()
 message(STATUS "${TOOL} on ${KIND}: ${err}")

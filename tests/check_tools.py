@@ -1,13 +1,30 @@
 #!/usr/bin/python3
-"""Tests of examples/render/rmse_vs_time.py (against tests/fake_kdrt_render.py, which has kdrt-render's
-command line), examples/render/frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed)
-and bench/quality_table.py (on small CSVs written here).
+"""Tests of the programs' command lines and the scripts around them:
 
-usage: tests/check_tools.py [RmseVsTime | FramesToVideo | QualityTable]   (unittest names; default: all)
+- ExitStatus: every program (kdrt-render, kdrt-view, kdrt-bench, kdrt-inspect, kdrt-construction,
+  kdrt-render-mesh, kdrt-ray-costs) exits 0 for --help, 2 for a bad command line with one line
+  saying what was wrong, and 1 for a failure (a bad input file, an output it cannot write).
+- OutputsFirst: kdrt-inspect, kdrt-construction and kdrt-render-mesh refuse an output they cannot
+  write before the work, in one line naming the path and the reason; kdrt-render-mesh refuses
+  a name it cannot write (out.jpg); enumerated values (--builder SAH) are taken in any case.
+- MeshFolder: the environment's KDRT_MESH_DIR names the mesh folder of kdrt-inspect,
+  kdrt-render-mesh and kdrt-ray-costs, and their --help says so.
+- SetupScript: tools/setup.sh waits for a held apt or dpkg lock and passes apt-get its lock
+  timeout (against stand-ins for dpkg-query, sudo and apt-get, with locks of the test's own).
+- RmseVsTime, FramesToVideo, QualityTable: examples/render/rmse_vs_time.py (against
+  tests/fake_kdrt_render.py, which has kdrt-render's command line), examples/render/
+  frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed) and
+  bench/quality_table.py (on small CSVs written here).
+
+usage: tests/check_tools.py [TEST ...] [PROGRAM=PATH ...]
+  TEST: a unittest name (ExitStatus, ExitStatus.test_kdrt_inspect, ...; default: all)
+  PROGRAM=PATH: where a program is (kdrt-inspect=build/tools/kdrt-inspect); the tests of a
+  program not given are skipped
 """
 import csv
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -19,11 +36,349 @@ HERE = Path(__file__).resolve().parent
 TOOLS = HERE.parent / "examples" / "render"
 BENCH = HERE.parent / "bench"
 FAKE = HERE / "fake_kdrt_render.py"
+SETUP = HERE.parent / "tools" / "setup.sh"
+PROGRAMS = {}  # name -> path, from the NAME=PATH arguments
 
 
-def run(command, env=None):
-    return subprocess.run([str(c) for c in command], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          env={**os.environ, **(env or {})})
+def run(command, env=None, stdout=subprocess.PIPE, timeout=None):
+    return subprocess.run([str(c) for c in command], stdout=stdout, stderr=subprocess.PIPE, text=True,
+                          env={**os.environ, **(env or {})}, timeout=timeout)
+
+
+OCTAHEDRON = ("OFF\n6 8 0\n1 0 0\n-1 0 0\n0 1 0\n0 -1 0\n0 0 1\n0 0 -1\n"
+              "3 0 2 4\n3 2 1 4\n3 1 3 4\n3 3 0 4\n3 2 0 5\n3 1 2 5\n3 3 1 5\n3 0 3 5\n")
+
+
+class ProgramTest(unittest.TestCase):
+    """A folder with an octahedron, a folder named like an output file, a read-only file, and a
+    way to run a program given as NAME=PATH and check its status and its message."""
+
+    def setUp(self):
+        self.dir = Path(tempfile.mkdtemp(prefix="kdrt_programs_test_"))
+        self.mesh = self.dir / "octahedron.off"
+        self.mesh.write_text(OCTAHEDRON)
+        self.missing = self.dir / "no-such-file.obj"
+        self.folder = self.dir / "a-folder"
+        self.folder.mkdir()
+
+    def tearDown(self):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def folder_named(self, name):
+        (self.dir / name).mkdir()
+        return self.dir / name
+
+    def read_only(self, name):
+        path = self.dir / name
+        path.write_bytes(b"old")
+        path.chmod(0o444)
+        return path
+
+    def program(self, name):
+        if name not in PROGRAMS:
+            self.skipTest(f"{name} not given (as {name}=PATH)")
+        return PROGRAMS[name]
+
+    def check(self, name, args, status, message=None, one_line=False, env=None, stdout=subprocess.PIPE):
+        """Runs program `name` with args; its status must be `status` and a line of its stderr must
+        match "NAME: MESSAGE" (a regular expression), the only line if one_line."""
+        done = run([self.program(name), *args], env=env, stdout=stdout, timeout=60)
+        shown = f"{name} {' '.join(map(str, args))}: exit {done.returncode}\n{done.stderr}"
+        self.assertEqual(done.returncode, status, shown)
+        lines = done.stderr.splitlines()
+        if one_line:
+            self.assertEqual(len(lines), 1, shown)
+        if message is not None:
+            self.assertTrue(any(re.fullmatch(f"{re.escape(name)}: {message}", line) for line in lines),
+                            f"no line matches '{name}: {message}' in\n{shown}")
+        return done
+
+    def check_usage(self, name, args, message=".+"):
+        """A bad command line: status 2 and one line saying what was wrong, nothing on stdout."""
+        done = self.check(name, args, 2, message, one_line=True)
+        self.assertEqual(done.stdout, "")
+
+    def check_help(self, name):
+        done = self.check(name, ["--help"], 0)
+        self.assertIn("usage: " + name, done.stdout)
+
+
+class ExitStatus(ProgramTest):
+    """0 for --help, 2 for a bad command line (a bad option, a missing value or required argument),
+    1 for a failure (an input file it cannot read, an output it cannot write); each program's
+    test runs each case. The programs of tools/, kdrt-render-mesh and kdrt-ray-costs also say
+    "PROGRAM: cannot read|write 'PATH': REASON" in one line."""
+
+    def read_failure(self, name, args, path):
+        self.check(name, args, 1, f"cannot read '{re.escape(str(path))}': .+", one_line=True)
+
+    def write_failure(self, name, args, path):
+        self.check(name, args, 1, f"cannot write '{re.escape(str(path))}': .+", one_line=True)
+
+    def test_kdrt_render(self):
+        name = "kdrt-render"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"])
+        self.check_usage(name, ["--preset", "PHASE_1", "--size", "8x6"])  # no -o
+        self.check_usage(name, ["--size"])
+        out = self.dir / "out.png"
+        self.check(name, ["--set", f"MESH={self.missing}", "--size", "8x6", "-o", out], 1, f".*{re.escape(str(self.missing))}.*")
+        folder = self.folder_named("folder.png")
+        self.check(name, ["--preset", "PHASE_1", "--size", "8x6", "-o", folder], 1, f".*{re.escape(str(folder))}.*")
+
+    def test_kdrt_view(self):
+        name = "kdrt-view"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"])
+        self.check_usage(name, ["--size"])
+        offscreen = {"SDL_VIDEODRIVER": "offscreen"}
+        scene = self.dir / "no-such-scene.yaml"
+        self.check(name, ["--scene", scene, "--frames", "1", "--size", "8x6"], 1, f".*{re.escape(str(scene))}.*",
+                   env=offscreen)
+        folder = self.folder_named("folder.png")
+        self.check(name, ["--preset", "PHASE_1", "--frames", "1", "--size", "8x6", "--screenshot", folder], 1,
+                   f".*{re.escape(str(folder))}.*", env=offscreen)
+
+    def test_kdrt_bench(self):
+        name = "kdrt-bench"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"])
+        self.check_usage(name, ["--size"])
+        out = self.dir / "out.csv"
+        self.check(name, ["--size", "8x8", "--leaf-sizes", "1", self.missing, "-o", out], 1,
+                   f".*{re.escape(str(self.missing))}.*")
+        folder = self.folder_named("folder.csv")
+        self.check(name, ["--size", "8x8", "--leaf-sizes", "1", self.mesh, "-o", folder], 1, f".*{re.escape(str(folder))}.*")
+
+    def test_kdrt_inspect(self):
+        name = "kdrt-inspect"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"], "unknown option '--bogus' \\(see --help\\)")
+        self.check_usage(name, [self.mesh, "--boxes"], "--boxes needs a value \\(see --help\\)")
+        self.check_usage(name, [self.mesh, "--depth", "65"], "--depth wants a whole number from 0 to 64, not '65'")
+        self.check_usage(name, [self.mesh, "--boxes", self.dir / "boxes.stl"], ".*'.*boxes.stl'")
+        self.read_failure(name, [self.missing], self.missing)
+        self.read_failure(name, [self.folder], self.folder)
+        folder = self.folder_named("folder.obj")
+        self.write_failure(name, [self.mesh, "--boxes", folder], folder)
+
+    def test_kdrt_construction(self):
+        name = "kdrt-construction"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"], "unknown option '--bogus' \\(see --help\\)")
+        self.check_usage(name, [], "no output: give -o OUT.json .*")
+        self.check_usage(name, ["-o"], "-o needs a value \\(see --help\\)")
+        self.check_usage(name, ["--count", "0", "-o", "-"], "--count wants a whole number from 1 to 10000, not '0'")
+        missing = self.dir / "no-such-file.txt"
+        self.read_failure(name, [missing, "-o", "-"], missing)
+        self.read_failure(name, [self.folder, "-o", "-"], self.folder)
+        folder = self.folder_named("folder.json")
+        self.write_failure(name, ["-o", folder], folder)
+
+    def test_kdrt_render_mesh(self):
+        name = "kdrt-render-mesh"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"], "unknown option '--bogus' \\(see --help\\)")
+        self.check_usage(name, [self.mesh], "no output file: give -o OUT.png")
+        self.check_usage(name, [self.mesh, "-o"], "-o needs a value \\(see --help\\)")
+        self.check_usage(name, [self.mesh, "--size", "8x0", "-o", self.dir / "out.png"], "bad --size '8x0': .+")
+        self.read_failure(name, [self.missing, "-o", self.dir / "out.png"], self.missing)
+        self.read_failure(name, [self.folder, "-o", self.dir / "out.png"], self.folder)
+        folder = self.folder_named("folder.png")
+        self.write_failure(name, [self.mesh, "--size", "8x6", "-o", folder], folder)
+
+    def test_kdrt_ray_costs(self):
+        name = "kdrt-ray-costs"
+        self.check_help(name)
+        self.check_usage(name, ["--bogus"], "unknown option '--bogus' \\(see --help\\)")
+        self.check_usage(name, ["--size"], "--size needs a value \\(see --help\\)")
+        self.check_usage(name, ["--repeat", "0"], "--repeat wants 1 to 1000, got '0'")
+        self.read_failure(name, [self.missing], self.missing)
+        self.read_failure(name, [self.folder], self.folder)
+        # Its one output is standard output: a full disk is a failure.
+        with open("/dev/full", "w") as full:
+            self.check(name, ["--size", "8x8", "--repeat", "1", self.mesh], 1,
+                       "cannot write standard output: No space left on device", one_line=True, stdout=full)
+
+
+class OutputsFirst(ProgramTest):
+    """An output a program cannot write is refused before the work: status 1, one line naming the
+    user's path and the reason, no report on stdout and no build or trace on stderr."""
+
+    def outputs(self):
+        """(program, arguments with OUT for the output) for each output of each program."""
+        return [("kdrt-inspect", [self.mesh, "--boxes", "OUT.obj"]),
+                ("kdrt-inspect", [self.mesh, "--picture", "OUT.png", "--size", "64x48"]),
+                ("kdrt-construction", ["-o", "OUT.json"]),
+                ("kdrt-render-mesh", [self.mesh, "--size", "64x48", "-o", "OUT.png"])]
+
+    def refused(self, kind, make):
+        for name, args in self.outputs():
+            with self.subTest(program=name, output=args[-1] if args[-1].startswith("OUT") else args[-3], kind=kind):
+                ext = next(a for a in args if isinstance(a, str) and a.startswith("OUT"))[3:]
+                path = make(f"{name}-{kind}{ext}")
+                done = self.check(name, [path if a == "OUT" + ext else a for a in args], 1,
+                                  f"cannot write '{re.escape(str(path))}': .+", one_line=True)
+                self.assertEqual(done.stdout, "")
+
+    def test_a_folder(self):
+        self.refused("folder", self.folder_named)
+
+    def test_a_read_only_file(self):
+        self.refused("read-only", self.read_only)
+        for path in self.dir.glob("*read-only*"):
+            self.assertEqual(path.read_bytes(), b"old")
+
+    def test_a_path_that_cannot_be_created(self):
+        self.refused("uncreatable", lambda name: self.dir / "no-such-folder" / name)
+
+    def test_render_mesh_writes_png_only(self):
+        jpg = self.dir / "out.jpg"
+        self.check_usage("kdrt-render-mesh", [self.mesh, "--size", "8x6", "-o", jpg],
+                         f"cannot write '{re.escape(str(jpg))}': .*PNG.*")
+        self.assertFalse(jpg.exists())
+        png = self.dir / "OUT.PNG"
+        self.check("kdrt-render-mesh", [self.mesh, "--size", "8x6", "-o", png], 0)
+        self.assertEqual(png.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
+
+    def test_builders_in_any_case(self):
+        done = self.check("kdrt-inspect", [self.mesh, "--builder", "SAH", "--json"], 0)
+        self.assertIn('"builder": "sah"', done.stdout)
+        done = self.check("kdrt-inspect", [self.mesh, "--builder", "Median", "--json"], 0)
+        self.assertIn('"builder": "median"', done.stdout)
+        self.check_usage("kdrt-inspect", [self.mesh, "--builder", "kd"], "--builder wants median or sah, not 'kd'")
+        for builder in ("MEDIAN", "Sah"):
+            done = self.check("kdrt-construction", ["--builder", builder, "-o", "-"], 0)
+            self.assertIn(f'"builder": "{builder.lower()}"', done.stdout)
+
+
+class MeshFolder(ProgramTest):
+    """The mesh folder is the environment's KDRT_MESH_DIR when it is set, else the one configured
+    at build time, and --help says so: here a folder whose bunny and nefertiti are octahedra."""
+
+    def setUp(self):
+        super().setUp()
+        self.meshes = self.dir / "meshes"
+        obj = "".join(f"v {line}\n" for line in OCTAHEDRON.splitlines()[2:8]) + "".join(
+            "f " + " ".join(str(int(i) + 1) for i in line.split()[1:]) + "\n" for line in OCTAHEDRON.splitlines()[8:])
+        for name, text in (("common/stanford-bunny.obj", obj), ("seed/nefertiti.off", OCTAHEDRON)):
+            (self.meshes / name).parent.mkdir(parents=True, exist_ok=True)
+            (self.meshes / name).write_text(text)
+        self.env = {"KDRT_MESH_DIR": str(self.meshes)}
+
+    def test_help_names_the_variable(self):
+        for name in ("kdrt-inspect", "kdrt-render-mesh", "kdrt-ray-costs"):
+            with self.subTest(program=name):
+                done = self.check(name, ["--help"], 0)
+                self.assertIn("The mesh folder: $KDRT_MESH_DIR, else the one configured at build time: ", done.stdout)
+
+    def test_the_environment_names_the_folder(self):
+        bunny = self.meshes / "common" / "stanford-bunny.obj"
+        done = self.check("kdrt-inspect", ["--json"], 0, env=self.env)
+        self.assertIn(f'"source": "{bunny}, the default"', done.stdout)
+        self.assertIn('"input_triangles": 8', done.stdout)
+        out = self.dir / "bunny.png"
+        done = self.check("kdrt-render-mesh", ["--size", "8x6", "-o", out], 0, env=self.env)
+        self.assertIn(f"mesh: {bunny}\n", done.stderr)
+        done = self.check("kdrt-ray-costs", ["--size", "8x8", "--repeat", "1"], 0, env=self.env)
+        self.assertEqual(sorted({line.split("|")[1].strip() for line in done.stdout.splitlines()[2:]}),
+                         ["nefertiti", "stanford-bunny"])
+
+
+# Holds a POSIX lock (as apt and dpkg take theirs) on argv[1] for argv[2] seconds, says "held" on
+# stdout once it has it, and writes "released NAME" to the log argv[3] just before letting go.
+LOCK_HOLDER = """
+import fcntl, os, sys, time
+lock = open(sys.argv[1], "a")
+fcntl.lockf(lock, fcntl.LOCK_EX)
+print("held", flush=True)
+time.sleep(float(sys.argv[2]))
+with open(sys.argv[3], "a") as log:
+    log.write("released " + os.path.basename(sys.argv[1]) + "\\n")
+"""
+
+
+class SetupScript(unittest.TestCase):
+    """tools/setup.sh with every package missing (a stand-in dpkg-query), through stand-ins for
+    sudo and apt-get (which logs its arguments), with lock files of its own: this machine's apt is
+    neither run nor locked."""
+
+    def setUp(self):
+        self.dir = Path(tempfile.mkdtemp(prefix="kdrt_setup_test_"))
+        self.log = self.dir / "log"
+        bin_dir = self.dir / "bin"
+        bin_dir.mkdir()
+        for tool, body in {"dpkg-query": "exit 1",
+                           "sudo": 'exec "$@"',
+                           "apt-get": f'echo "apt-get $*" >> "{self.log}"'}.items():
+            (bin_dir / tool).write_text(f"#!/bin/sh\n{body}\n")
+            (bin_dir / tool).chmod(0o755)
+        self.locks = {}
+        self.env = {"PATH": f"{bin_dir}:{os.environ.get('PATH', '/usr/bin:/bin')}"}
+        for name, variable in (("lists", "KDRT_SETUP_LISTS_LOCK"), ("lock-frontend", "KDRT_SETUP_DPKG_LOCK"),
+                               ("lock", "KDRT_SETUP_DPKG_LOCK_INNER"), ("archives", "KDRT_SETUP_ARCHIVES_LOCK")):
+            self.locks[name] = self.dir / name
+            self.locks[name].touch()
+            self.env[variable] = str(self.locks[name])
+        self.holders = []
+
+    def tearDown(self):
+        for holder in self.holders:
+            holder.kill()
+            holder.wait()
+            holder.stdout.close()
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def hold(self, name, seconds):
+        holder = subprocess.Popen([sys.executable, "-c", LOCK_HOLDER, self.locks[name], str(seconds), self.log],
+                                  stdout=subprocess.PIPE, text=True)
+        self.holders.append(holder)
+        self.assertEqual(holder.stdout.readline(), "held\n")
+        return holder
+
+    def setup(self, *args):
+        return run(["bash", SETUP, *args], env=self.env, timeout=60)
+
+    def logged(self):
+        return self.log.read_text().splitlines() if self.log.exists() else []
+
+    def test_apt_get_is_given_a_lock_timeout(self):
+        done = self.setup()
+        self.assertEqual(done.returncode, 0, done.stderr)
+        update, install = self.logged()
+        self.assertEqual(update, "apt-get -o DPkg::Lock::Timeout=600 update")
+        self.assertTrue(install.startswith("apt-get -o DPkg::Lock::Timeout=600 install -y --no-install-recommends cmake "),
+                        install)
+        done = self.setup("--lock-timeout", "30")
+        self.assertEqual(done.returncode, 0, done.stderr)
+        self.assertEqual(self.logged()[2], "apt-get -o DPkg::Lock::Timeout=30 update")
+        self.assertEqual(self.setup("--lock-timeout", "soon").returncode, 2)
+
+    def test_it_waits_for_a_held_dpkg_lock_and_says_so(self):
+        holder = self.hold("lock-frontend", 2)
+        done = self.setup("--lock-timeout", "30")
+        self.assertEqual(done.returncode, 0, done.stderr)
+        self.assertIn(f"setup.sh: waiting for the lock {self.locks['lock-frontend']}, held by process {holder.pid} "
+                      "(python3) (up to 30 s) ...", done.stdout)
+        # apt-get install ran only once the lock was free.
+        self.assertEqual([line.split(" install ")[0] for line in self.logged()],
+                         ["apt-get -o DPkg::Lock::Timeout=30 update", "released lock-frontend",
+                          "apt-get -o DPkg::Lock::Timeout=30"])
+
+    def test_it_waits_for_the_package_lists(self):
+        self.hold("lists", 2)
+        done = self.setup("--lock-timeout", "30")
+        self.assertEqual(done.returncode, 0, done.stderr)
+        self.assertIn(f"waiting for the lock {self.locks['lists']}", done.stdout)
+        self.assertEqual(self.logged()[:2], ["released lists", "apt-get -o DPkg::Lock::Timeout=30 update"])
+
+    def test_a_lock_held_too_long_stops_it(self):
+        holder = self.hold("archives", 60)
+        done = self.setup("--lock-timeout", "1")
+        self.assertEqual(done.returncode, 1)
+        self.assertIn(f"setup.sh: cannot install: {self.locks['archives']} is still locked by process {holder.pid} "
+                      "(python3) after 1 s", done.stderr)
+        self.assertEqual(self.logged(), ["apt-get -o DPkg::Lock::Timeout=1 update"])  # no install
 
 
 class RmseVsTime(unittest.TestCase):
@@ -226,4 +581,11 @@ class QualityTable(unittest.TestCase):
 
 
 if __name__ == "__main__":
-    unittest.main(verbosity=2)
+    tests = []
+    for arg in sys.argv[1:]:
+        name, is_program, path = arg.partition("=")
+        if is_program:
+            PROGRAMS[name] = path
+        else:
+            tests.append(arg)
+    unittest.main(argv=[sys.argv[0], *tests], verbosity=2)

@@ -10,6 +10,7 @@ filters), not by the programs under test. Only the standard library: Debian's /u
 """
 import ctypes
 import os
+import signal
 import struct
 import subprocess
 import sys
@@ -212,12 +213,27 @@ def check_orbit_preview(ctx):
 
 
 def check_bad_input(ctx):
-    """Bad command lines exit 2, bad files and unwritable screenshots 1, each with one line."""
+    """Bad command lines exit 2, bad files and unwritable screenshots 1, each with one line. An
+    unwritable screenshot (a folder of that name, a read-only file, a folder no file can be created
+    in, a missing folder) is refused before the first frame (here 100,000 frames of PICTURE that
+    would take many minutes), and the line names the user's path, never a temporary."""
     scene = os.path.join(ctx.work, "bad.yaml")
     with open(scene, "w") as f:
         f.write("camera: [1, 2\n")
+    folder = os.path.join(ctx.work, "taken.png")
+    os.makedirs(folder, exist_ok=True)
+    locked = os.path.join(ctx.work, "locked.png")
+    if os.path.exists(locked):
+        os.chmod(locked, 0o644)
+    with open(locked, "w") as f:
+        f.write("the old file")
+    os.chmod(locked, 0o444)
+    missing = os.path.join(ctx.work, "no-such-folder", "x.png")
+    slow = ["--preset", "PICTURE", "--frames", "100000", "--screenshot"]
     cases = [
         (["--preset", "PHASE_9"], 2, "unknown preset 'PHASE_9'"),
+        (["--preset", ""], 2, "unknown preset '' (presets: PHASE_1, "),
+        (["--scene", ""], 2, "--scene needs a file"),
         (["--scene", os.path.join(ctx.work, "missing.yaml")], 1, "missing.yaml"),
         (["--scene", scene], 1, "bad.yaml"),
         (["--set", "NSAMPLES=many"], 2, "setting NSAMPLES: 'many' is not an integer"),
@@ -226,14 +242,75 @@ def check_bad_input(ctx):
         (["--keys", "p"], 2, "give --frames N"),
         (["--frames", "1", "--screenshot", "out.jpg"], 2, "must end in .png"),
         (["--bogus"], 2, "unknown argument '--bogus'"),
-        (["--preset", "PHASE_1", "--size", "8x6", "--frames", "1", "--screenshot", "/nonexistent-dir/x.png"], 1,
-         "cannot create /nonexistent-dir/x.png.tmp-"),
+        ([*slow, folder], 1, f"cannot write '{folder}': it exists and is not a regular file"),
+        ([*slow, locked], 1, f"cannot write '{locked}': it is read-only"),
+        ([*slow, "/proc/kdrt-view-test.png"], 1, "cannot write '/proc/kdrt-view-test.png': cannot create a file in '/proc'"),
+        ([*slow, missing], 1, f"cannot write '{missing}': the folder '{os.path.dirname(missing)}' does not exist"),
     ]
     for args, status, message in cases:
-        out = run([ctx.view, *args], expect_status=status)
+        out = run([ctx.view, *args], expect_status=status, timeout=30)
         lines = [l for l in out.splitlines() if l.startswith("kdrt-view: ") and message in l]
         check(lines, f"{args}: no line with '{message}'")
+        check(".tmp-" not in out, f"{args}: a temporary named")
         check(not any("Sanitizer" in l for l in out.splitlines()), f"{args}: a sanitizer report")
+    check(os.listdir(folder) == [], "the folder was changed")
+    with open(locked) as f:
+        check(f.read() == "the old file", "the read-only file was changed")
+    os.chmod(locked, 0o644)
+    check(not [n for n in os.listdir(ctx.work) if ".tmp-" in n], "a temporary was left")
+
+
+def check_interrupted(ctx):
+    """SIGINT or SIGTERM while --frames N --screenshot OUT renders: it dies of that signal (130
+    or 143 in a shell, as kdrt-render does), and OUT is the old file, with no temporary left."""
+    def default_signals():  # as in a terminal, whatever ctest's own dispositions are
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        shot = os.path.join(ctx.work, f"old-{sig.name}.png")
+        with open(shot, "w") as f:
+            f.write("the old file")
+        log = open(os.path.join(ctx.work, f"{sig.name}.log"), "w+")
+        proc = subprocess.Popen([ctx.view, "--preset", "PICTURE", "--size", "160x120", "--frames", "1000000",
+                                 "--screenshot", shot], stdout=log, stderr=subprocess.STDOUT, preexec_fn=default_signals)
+        try:
+            def log_text():
+                log.flush()
+                log.seek(0)
+                return log.read()
+            wait_for(lambda: "tree built in" in log_text() or proc.poll() is not None, "the tree to be built")
+            time.sleep(1)  # frames rendering
+            check(proc.poll() is None, f"it ended before the signal, status {proc.returncode}")
+            proc.send_signal(sig)
+            status = proc.wait(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        print(f"$ kdrt-view ... --screenshot {shot}, sent {sig.name} -> {status}\n{log_text()}")
+        check(status == -sig, f"exit status {status}, not death by {sig.name}")
+        with open(shot) as f:
+            check(f.read() == "the old file", f"{shot} was changed")
+        check(not [n for n in os.listdir(ctx.work) if ".tmp-" in n], "a temporary was left")
+
+
+def check_names_any_case(ctx):
+    """Names ignore case: presets and settings, and keys of more than one letter (a letter's case
+    is shift: p and P are two keys)."""
+    shot = view_shot(ctx, "cases.png", "--preset", "phase_2_hard_shadows", "--set", "nsamples=1", "--size", "32x24",
+                     "--frames", "1", "--keys", "pageup,LEFT,esc")
+    check(shot[3].get("Title") == "PHASE_2_HARD_SHADOWS", f"the screenshot names {shot[3].get('Title')!r}")
+
+
+def check_mesh_dir_env(ctx):
+    """The environment's KDRT_MESH_DIR, when set, is the mesh folder instead of the one configured
+    at build time; --help says both."""
+    none = os.path.join(ctx.work, "no-meshes")
+    out = run([ctx.view, "--preset", "PHASE_3_INTERPOLATION", "--size", "16x12", "--frames", "1"],
+              env={"KDRT_MESH_DIR": none})
+    check(f"generated torus (no mesh folder {none} for stanford-bunny)" in out, "the environment's folder was not used")
+    help_text = run([ctx.view, "--help"])
+    check("$KDRT_MESH_DIR, else the one configured at build time: " in help_text, "--help does not say both")
 
 
 def check_no_display(ctx):

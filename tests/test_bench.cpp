@@ -32,7 +32,7 @@ std::vector<std::string> split(const std::string &line, char sep) {
 }  // namespace
 
 TEST_CASE("leaf sizes stop after the first one at or above the mesh's triangle count", "[bench]") {
-    const std::vector<uint32_t> all = kb::default_leaf_sizes();
+    const std::vector<uint32_t> all = kb::sweep_leaf_sizes();
     REQUIRE(all == std::vector<uint32_t>{0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024});
     // The original's CSV: TRIANGLE (1 triangle) has rows for 0 and 1; NEFERTITI (562) up to 768.
     CHECK(kb::leaf_sizes_for(all, 1) == std::vector<uint32_t>{0, 1});
@@ -52,7 +52,7 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
     CHECK(opt.width == 800);
     CHECK(opt.height == 800);
     CHECK(opt.threads == 1);
-    CHECK(opt.leaf_sizes == kb::default_leaf_sizes());
+    CHECK(opt.leaf_sizes == std::vector<uint32_t>{4});
 
     REQUIRE(parse({"--size", "64x48", "--threads", "2", "--repeat", "3", "--leaf-sizes", "0,1,8", "--rays", "diffuse",
                    "-o", "x.csv", "--reference-rays", "0", "--subdivide", "2", "a.off", "dir"},
@@ -84,6 +84,84 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
     REQUIRE(parse({"--builder", "median,sah"}, opt, error));
     CHECK(opt.builders == std::vector<std::string>{"median", "sah"});
     CHECK_FALSE(parse({"--builder", "sah,"}, opt, error));
+}
+
+TEST_CASE("bench defaults: kdrt's default tree beside Embree; --sweep, the original's leaf-size run", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    // No option: the SAH builder at its default quality and costs, leaf size 4, once, and Embree
+    // beside it unless the command line says (main() asks whether this kdrt-bench has Embree).
+    REQUIRE(parse({}, opt, error));
+    CHECK(opt.builders == std::vector<std::string>{"sah"});
+    CHECK(opt.leaf_sizes == std::vector<uint32_t>{kb::kDefaultLeafSize});
+    CHECK(kb::kDefaultLeafSize == kdrt_default_build_options().max_leaf_size);
+    CHECK_FALSE(opt.sweep);
+    CHECK_FALSE(opt.compare_chosen);
+    CHECK_FALSE(opt.quiet);
+    std::vector<kb::BuildVariant> v = kb::build_variants(opt);
+    REQUIRE(v.size() == 1);
+    CHECK(v[0].options.builder == KDRT_BUILDER_SAH);
+    CHECK(v[0].options.quality == KDRT_BUILD_QUALITY_DEFAULT);
+    CHECK(v[0].sah_costs == "30:20:0.1");
+    REQUIRE(parse({"--compare", "none"}, opt, error));
+    CHECK((opt.compare_chosen && !opt.compare_embree));
+    REQUIRE(parse({"--compare", "embree"}, opt, error));
+    CHECK((opt.compare_chosen && opt.compare_embree));
+
+    // --sweep: the median builder over the original's leaf sizes, no Embree; an option given
+    // beside it wins.
+    REQUIRE(parse({"--sweep"}, opt, error));
+    CHECK(opt.sweep);
+    CHECK(opt.builders == std::vector<std::string>{"median"});
+    CHECK(opt.leaf_sizes == kb::sweep_leaf_sizes());
+    CHECK((opt.compare_chosen && !opt.compare_embree));
+    REQUIRE(parse({"--builder", "sah", "--sweep", "--compare", "embree", "--repeat", "2"}, opt, error));
+    CHECK(opt.builders == std::vector<std::string>{"sah"});
+    CHECK(opt.leaf_sizes == kb::sweep_leaf_sizes());
+    CHECK(opt.compare_embree);
+    REQUIRE(parse({"--sweep", "--leaf-sizes", "0,4"}, opt, error));
+    CHECK(opt.builders == std::vector<std::string>{"median"});
+    CHECK(opt.leaf_sizes == std::vector<uint32_t>{0, 4});
+    REQUIRE(parse({"--quiet"}, opt, error));
+    CHECK(opt.quiet);
+    REQUIRE(parse({"-q"}, opt, error));
+    CHECK(opt.quiet);
+
+    // The other modes have no leaf sizes to sweep.
+    CHECK_FALSE(parse({"--accuracy", "--sweep"}, opt, error));
+    CHECK(error.find("--sweep does not apply to --accuracy") != std::string::npos);
+    CHECK_FALSE(parse({"--scene", "merged", "--sweep"}, opt, error));
+    CHECK(error.find("--sweep does not apply to --scene") != std::string::npos);
+
+    // --help says what the default run is and names the flag for the original's.
+    const std::string help = kb::usage();
+    CHECK(help.find("SAH builder, default quality, max leaf size 4") != std::string::npos);
+    CHECK(help.find("--sweep             the original benchmark") != std::string::npos);
+    CHECK(help.find("--compare embree|none") != std::string::npos);
+}
+
+TEST_CASE("bench option values are names in either case", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    REQUIRE(parse({"--builder", "SAH,Median", "--intersector", "Fast,WATERTIGHT", "--quality", "FAST,High", "--rays",
+                   "Shadow", "--query", "PLAIN,Filter", "--compare", "EMBREE"},
+                  opt, error));
+    CHECK(opt.builders == std::vector<std::string>{"sah", "median"});
+    CHECK(opt.intersectors == std::vector<kdrt_intersector>{KDRT_INTERSECTOR_FAST, KDRT_INTERSECTOR_WATERTIGHT});
+    CHECK(opt.qualities == std::vector<kdrt_build_quality>{KDRT_BUILD_QUALITY_FAST, KDRT_BUILD_QUALITY_HIGH});
+    CHECK(opt.rays == kb::RayKind::shadow);
+    CHECK(opt.queries == std::vector<std::string>{"plain", "filter"});
+    CHECK(opt.compare_embree);
+    REQUIRE(parse({"--rays", "DIFFUSE", "--compare", "None"}, opt, error));
+    CHECK(opt.rays == kb::RayKind::diffuse);
+    CHECK((opt.compare_chosen && !opt.compare_embree));
+    REQUIRE(parse({"--scene", "Merged,FIELD"}, opt, error));
+    CHECK(opt.scenes == std::vector<std::string>{"merged", "field"});
+    // A wrong name is still wrong, and named as it was given.
+    CHECK_FALSE(parse({"--builder", "SAHH"}, opt, error));
+    CHECK(error.find("'SAHH'") != std::string::npos);
+    CHECK_FALSE(parse({"--rays", "Sideways"}, opt, error));
+    CHECK(error.find("'Sideways'") != std::string::npos);
 }
 
 TEST_CASE("bench option --sah-costs: a SAH variant per triple, named in SahCosts", "[bench]") {
@@ -126,7 +204,10 @@ TEST_CASE("bench option --sah-costs: a SAH variant per triple, named in SahCosts
         CHECK(error.find("--sah-costs") != std::string::npos);
     }
     // Only the SAH builder has cost constants, and --accuracy has no builder choice.
-    CHECK_FALSE(parse({"--sah-costs", "1:80:0.5"}, opt, error));
+    REQUIRE(parse({"--sah-costs", "1:80:0.5"}, opt, error));  // the default builder is SAH's
+    CHECK_FALSE(parse({"--builder", "median", "--sah-costs", "1:80:0.5"}, opt, error));
+    CHECK(error.find("--builder sah") != std::string::npos);
+    CHECK_FALSE(parse({"--sweep", "--sah-costs", "1:80:0.5"}, opt, error));
     CHECK(error.find("--builder sah") != std::string::npos);
     CHECK_FALSE(parse({"--accuracy", "--builder", "sah", "--sah-costs", "1:80:0.5"}, opt, error));
     CHECK(error.find("--sah-costs does not apply to --accuracy") != std::string::npos);
@@ -152,13 +233,13 @@ TEST_CASE("bench option --quality: a SAH variant per quality and triple, named i
     REQUIRE(parse({"--builder", "sah", "--quality", "medium"}, opt, error));
     CHECK(kb::build_variants(opt)[0].options.quality == KDRT_BUILD_QUALITY_MEDIUM);
 
-    for (const char *bad : {"", "low", "fast,", "fast,,high", "FAST", "medium high"}) {
+    for (const char *bad : {"", "low", "fast,", "fast,,high", "FASTER", "medium high"}) {
         INFO("'" << bad << "'");
         error.clear();
         CHECK_FALSE(parse({"--builder", "sah", "--quality", bad}, opt, error));
         CHECK(error.find("--quality") != std::string::npos);
     }
-    CHECK_FALSE(parse({"--quality", "fast"}, opt, error));  // the median builder has no quality
+    CHECK_FALSE(parse({"--builder", "median", "--quality", "fast"}, opt, error));  // the median builder has no quality
     CHECK(error.find("--builder sah") != std::string::npos);
     CHECK_FALSE(parse({"--accuracy", "--builder", "sah", "--quality", "fast"}, opt, error));
     CHECK(error.find("--quality does not apply to --accuracy") != std::string::npos);

@@ -195,6 +195,27 @@ TEST_CASE("inspect tools: outputs that cannot be written leave no file", "[inspe
     CHECK(dir.entries() == std::vector<std::string>{"taken.ply"});
 }
 
+TEST_CASE("inspect tools: the extension is read in any case", "[inspect][tools]") {
+    const common::Mesh mesh = kt::sphere(8, 12, 1.0);
+    kt::TreePtr tree = sah_tree(mesh, 4);
+    std::vector<kdrt_tools::DepthBox> boxes;
+    std::string error;
+    REQUIRE(kdrt_tools::boxes_to_depth(tree.get(), 1, boxes, error));
+    TempDir dir;
+    const auto first_line = [](const std::string &path) {
+        std::ifstream in(path);
+        std::string line;
+        std::getline(in, line);
+        return line;
+    };
+    REQUIRE(kdrt_tools::write_boxes(boxes, dir.file("BOXES.PLY"), error));
+    CHECK(first_line(dir.file("BOXES.PLY")) == "ply");
+    REQUIRE(kdrt_tools::write_boxes(boxes, dir.file("boxes.Obj"), error));
+    CHECK(first_line(dir.file("boxes.Obj")).rfind("# kdrt kd-tree boxes", 0) == 0);
+    REQUIRE(kdrt_tools::write_boxes_picture(mesh, tree.get(), boxes, 8, 6, dir.file("boxes.PNG"), error));
+    CHECK(first_line(dir.file("boxes.PNG")).rfind("\x89PNG", 0) == 0);
+}
+
 TEST_CASE("inspect tools: the picture shows the mesh and the root box", "[inspect][tools]") {
     const common::Mesh mesh = kt::sphere(16, 24, 1.0);
     kt::TreePtr tree = sah_tree(mesh, 4);

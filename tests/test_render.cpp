@@ -2,6 +2,9 @@
 // path refracts as optics says (checked against an exact double-precision trace and the paraxial
 // ball-lens formula), and image files are written atomically and read back.
 #include "render.hpp"
+#include "command_line.hpp"
+#include "common/atomic_file.hpp"
+#include "common/output.hpp"
 #include "common/thread_scheduler.hpp"
 #include "temp_dir.hpp"
 
@@ -351,7 +354,8 @@ TEST_CASE("render: a failed write leaves no output and no temporary file", "[ren
     CHECK_FALSE(kr::write_image(dir.file("out.bmp"), image, false, error));
     CHECK(error.find(".png or .exr") != std::string::npos);
     CHECK_FALSE(kr::write_image(dir.file("no-such-folder/out.png"), image, false, error));
-    CHECK(error.find("cannot create") != std::string::npos);
+    CHECK(error == "cannot write '" + dir.file("no-such-folder/out.png") + "': the folder '" + dir.file("no-such-folder") +
+                       "' does not exist");
     CHECK_FALSE(kr::write_image(dir.file("no-such-folder/out.exr"), image, false, error));
     CHECK(dir.entries().empty());
     // The output path is a folder: refused before anything is written.
@@ -363,6 +367,47 @@ TEST_CASE("render: a failed write leaves no output and no temporary file", "[ren
     image.rgb.pop_back();
     CHECK_FALSE(kr::write_image(dir.file("short.png"), image, false, error));
     CHECK(dir.entries() == std::vector<std::string>{"taken.exr"});
+}
+
+TEST_CASE("render: check_replaceable proves the folder takes a new file, and names the user's path", "[render][image]")
+{
+    TempDir dir;
+    std::string error;
+    // Writable: true, and the probe it created is gone.
+    CHECK(common::check_replaceable(dir.file("new.png"), error));
+    dir.write("old.png", "the old file");
+    CHECK(common::check_replaceable(dir.file("old.png"), error));
+    CHECK(dir.entries() == std::vector<std::string>{"old.png"});
+    // A folder no file can be created in, a missing folder, a file in place of a folder.
+    CHECK_FALSE(common::check_replaceable("/proc/kdrt-test.png", error));
+    CHECK(error.rfind("cannot write '/proc/kdrt-test.png': cannot create a file in '/proc': ", 0) == 0);
+    CHECK_FALSE(common::check_replaceable(dir.file("none/x.png"), error));
+    CHECK(error == "cannot write '" + dir.file("none/x.png") + "': the folder '" + dir.file("none") + "' does not exist");
+    CHECK_FALSE(common::check_replaceable(dir.file("old.png/x.png"), error));
+    CHECK(error == "cannot write '" + dir.file("old.png/x.png") + "': '" + dir.file("old.png") + "' is not a folder");
+    CHECK(error.find(".tmp-") == std::string::npos);
+    // A writer's message that names the temporary names the user's path instead.
+    CHECK_FALSE(common::write_atomically(dir.file("out.png"), [](const std::string &tmp, std::string &reason) {
+        reason = "cannot open " + tmp + ": it broke";
+        return false;
+    }, error));
+    CHECK(error == "cannot write '" + dir.file("out.png") + "': cannot open " + dir.file("out.png") + ": it broke");
+    CHECK(dir.entries() == std::vector<std::string>{"old.png"});
+}
+
+TEST_CASE("render: an empty --preset or --scene is refused, not taken for the default", "[render]")
+{
+    kr::SceneArgs args;
+    for (const char *option : {"--preset", "--scene"}) {
+        try {
+            kr::take_scene_arg(option, [] { return std::string(); }, args);
+            FAIL(option << " '' was taken");
+        } catch (const common::UsageError &e) {
+            CHECK(e.message.find("''") != std::string::npos);
+        }
+    }
+    CHECK(kr::take_scene_arg("--preset", [] { return std::string("picture"); }, args));
+    CHECK(args.preset == "picture");
 }
 
 TEST_CASE("render: a read-only image is refused and kept, for root too, and a writable one is replaced", "[render][image]")

@@ -1,6 +1,9 @@
 #include "construction.hpp"
 
 #include "common/random.hpp"
+#include "common/regular_file.hpp"  // common::open_regular_file
+
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -9,7 +12,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <deque>
-#include <fstream>
 #include <iterator>
 #include <sstream>
 
@@ -87,12 +89,27 @@ std::vector<float> random_triangles_2d(uint32_t count, uint64_t seed)
 
 bool read_triangles(const std::string &path, std::vector<float> &positions, std::string &error)
 {
-    std::ifstream in(path);
-    if (!in) {
-        error = "cannot read '" + path + "': " + std::strerror(errno);
+    // Only a regular file: a FIFO would wait for a writer, /dev/zero would never end, and a folder
+    // opens but fails on reading.
+    struct stat st;
+    std::string why;
+    std::FILE *file = common::open_regular_file(path.c_str(), st, why);
+    if (!file) {
+        error = "cannot read '" + path + "': " + why;
+        return false;
+    }
+    std::string text;
+    char buffer[65536];
+    for (size_t n; (n = std::fread(buffer, 1, sizeof buffer, file)) > 0;) text.append(buffer, n);
+    const bool failed = std::ferror(file) != 0;
+    const int read_errno = errno;
+    std::fclose(file);
+    if (failed) {
+        error = "cannot read '" + path + "': " + std::strerror(read_errno);
         return false;
     }
     positions.clear();
+    std::istringstream in(text);
     std::string line;
     for (unsigned number = 1; std::getline(in, line); ++number) {
         const size_t first = line.find_first_not_of(" \t\r");
@@ -116,10 +133,6 @@ bool read_triangles(const std::string &path, std::vector<float> &positions, std:
             return false;
         }
         for (double x : v) positions.push_back(float(x));
-    }
-    if (in.bad()) {
-        error = "cannot read '" + path + "'";
-        return false;
     }
     if (positions.empty()) {
         error = path + ": no triangles";

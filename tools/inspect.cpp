@@ -4,18 +4,18 @@
 //
 //   kdrt-inspect [MESH] [--builder median|sah] [--leaf-size N] [--json] [--boxes OUT.obj|OUT.ply]
 //                [--depth D] [--picture OUT.png] [--size WxH]
-#include "common/output.hpp"  // common::close_stdout
+#include "common/atomic_file.hpp"  // common::check_replaceable
+#include "common/mesh_io.hpp"  // common::load_mesh, common::mesh_dir, common::torus
+#include "common/output.hpp"  // common::guarded_main, common::UsageError
 #include "common/parse.hpp"  // common::parse_count, common::parse_size
 #include "tree_inspect.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <string>
-
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
 
 namespace {
 
@@ -24,15 +24,19 @@ const char *const usage =
     "                    [--boxes OUT.obj|OUT.ply] [--depth D] [--picture OUT.png] [--size WxH]\n"
     "Builds kdrt's kd-tree over MESH (anything Assimp reads) and prints its statistics: nodes,\n"
     "leaves (and empty ones), leaves by depth and by triangle count, references per triangle, SAH\n"
-    "cost, bytes and build time. Without MESH: the Stanford bunny from KDRT_MESH_DIR, else a\n"
-    "generated torus.\n"
-    "  --builder B     sah (the default) or median\n"
+    "cost, bytes and build time. Without MESH: the Stanford bunny, common/stanford-bunny.obj in the\n"
+    "mesh folder, else a generated torus.\n"
+    "  --builder B     sah (the default) or median, in any case\n"
     "  --leaf-size N   most triangles in a leaf (default 4; 0: no tree)\n"
     "  --json          the statistics as JSON on standard output\n"
     "  --boxes FILE    the boxes of the nodes down to --depth as a wireframe, .obj or .ply\n"
     "  --depth D       deepest level of boxes for --boxes and --picture (default 4)\n"
     "  --picture FILE  the mesh traced with kdrt and the boxes drawn over it, a .png\n"
-    "  --size WxH      the picture's size (default 800x600)\n";
+    "  --size WxH      the picture's size (default 800x600)\n"
+    "The mesh folder: {MESH_DIR}.\n"
+    "Exit status: 0 success, 1 failure (unreadable mesh, unwritable output), 2 a bad command line.\n";
+
+using common::UsageError;
 
 int fail(const std::string &message)
 {
@@ -40,62 +44,74 @@ int fail(const std::string &message)
     return 1;
 }
 
-}  // namespace
+std::string lowercase(std::string s)
+{
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return s;
+}
 
-int main(int argc, char **argv)
+int run(int argc, char **argv)
 {
     std::string mesh_path, boxes_path, picture_path, builder_name = "sah";
     unsigned long leaf_size = 4, depth = 4, width = 800, height = 600;
     bool json = false;
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
+        auto value = [&]() -> std::string {
+            if (i + 1 >= argc) throw UsageError{arg + " needs a value (see --help)"};
+            return argv[++i];
+        };
         if (arg == "--help" || arg == "-h") {
-            std::fputs(usage, stdout);
-            return common::close_stdout("kdrt-inspect", 0);
+            std::string text = usage;
+            text.replace(text.find("{MESH_DIR}"), 10, common::mesh_dir_help());
+            std::fputs(text.c_str(), stdout);
+            return 0;
         } else if (arg == "--json") {
             json = true;
-        } else if (arg == "--builder" && has_value) {
-            builder_name = argv[++i];
+        } else if (arg == "--builder") {
+            const std::string v = value();
+            builder_name = lowercase(v);
             if (builder_name != "sah" && builder_name != "median")
-                return fail("--builder wants median or sah, not '" + builder_name + "'");
-        } else if (arg == "--leaf-size" && has_value) {
-            if (!common::parse_count(argv[++i], KDRT_MAX_TRIANGLES, leaf_size))
-                return fail(std::string("--leaf-size wants a whole number, not '") + argv[i] + "'");
-        } else if (arg == "--depth" && has_value) {
-            if (!common::parse_count(argv[++i], KDRT_MAX_DEPTH, depth))
-                return fail(std::string("--depth wants a whole number from 0 to 64, not '") + argv[i] + "'");
-        } else if (arg == "--boxes" && has_value) {
-            boxes_path = argv[++i];
-        } else if (arg == "--picture" && has_value) {
-            picture_path = argv[++i];
-        } else if (arg == "--size" && has_value) {
-            const std::string size = argv[++i];
-            if (!common::parse_size(size, 8192, width, height))
-                return fail("--size wants WxH, each from 1 to 8192, not '" + size + "'");
+                throw UsageError{"--builder wants median or sah, not '" + v + "'"};
+        } else if (arg == "--leaf-size") {
+            const std::string v = value();
+            if (!common::parse_count(v, KDRT_MAX_TRIANGLES, leaf_size))
+                throw UsageError{"--leaf-size wants a whole number, not '" + v + "'"};
+        } else if (arg == "--depth") {
+            const std::string v = value();
+            if (!common::parse_count(v, KDRT_MAX_DEPTH, depth))
+                throw UsageError{"--depth wants a whole number from 0 to 64, not '" + v + "'"};
+        } else if (arg == "--boxes") {
+            boxes_path = value();
+        } else if (arg == "--picture") {
+            picture_path = value();
+        } else if (arg == "--size") {
+            const std::string v = value();
+            if (!common::parse_size(v, 8192, width, height))
+                throw UsageError{"--size wants WxH, each from 1 to 8192, not '" + v + "'"};
         } else if (arg.size() > 1 && arg[0] == '-') {
-            return fail("unknown option or missing value: '" + arg + "'\n" + usage);
+            throw UsageError{"unknown option '" + arg + "' (see --help)"};
         } else if (mesh_path.empty()) {
             mesh_path = arg;
         } else {
-            return fail("one mesh at most ('" + mesh_path + "', then '" + arg + "')");
+            throw UsageError{"one mesh at most ('" + mesh_path + "', then '" + arg + "')"};
         }
     }
-    // Refuse bad output names before the build, not after it.
-    auto has_extension = [](const std::string &p, const char *ext) {
-        return std::filesystem::path(p).extension() == ext;
-    };
-    if (!boxes_path.empty() && !has_extension(boxes_path, ".obj") && !has_extension(boxes_path, ".ply"))
-        return fail("--boxes wants a file named .obj or .ply, not '" + boxes_path + "'");
-    if (!picture_path.empty() && !has_extension(picture_path, ".png"))
-        return fail("--picture wants a file named .png, not '" + picture_path + "'");
+    // Refuse bad output names, and outputs that cannot be written, before the build.
+    const auto extension = [](const std::string &p) { return lowercase(std::filesystem::path(p).extension().string()); };
+    if (!boxes_path.empty() && extension(boxes_path) != ".obj" && extension(boxes_path) != ".ply")
+        throw UsageError{"--boxes wants a file named .obj or .ply, not '" + boxes_path + "'"};
+    if (!picture_path.empty() && extension(picture_path) != ".png")
+        throw UsageError{"--picture wants a file named .png, not '" + picture_path + "'"};
+    std::string error;
+    for (const std::string &output : {boxes_path, picture_path})
+        if (!output.empty() && !common::check_replaceable(output, error)) return fail(error);
 
     kdrt_tools::TreeReport report;
     common::Mesh mesh;
-    std::string error;
     if (mesh_path.empty()) {
         const std::string bunny =
-            (std::filesystem::path(KDRT_MESH_DIR) / "common" / "stanford-bunny.obj").lexically_normal().string();
+            (std::filesystem::path(common::mesh_dir()) / "common" / "stanford-bunny.obj").lexically_normal().string();
         std::error_code ec;
         if (std::filesystem::is_regular_file(bunny, ec) && common::load_mesh(bunny, mesh, error)) {
             report.source = bunny + ", the default";
@@ -106,7 +122,7 @@ int main(int argc, char **argv)
             mesh = common::torus(96, 48, 1.0, 0.35, 0.6);
         }
     } else {
-        if (!common::load_mesh(mesh_path, mesh, error)) return fail("cannot read mesh '" + mesh_path + "': " + error);
+        if (!common::load_mesh(mesh_path, mesh, error)) return fail("cannot read '" + mesh_path + "': " + error);
         report.source = mesh_path;
     }
     report.mesh = mesh.name;
@@ -148,5 +164,13 @@ int main(int argc, char **argv)
         else std::fprintf(stderr, "kdrt-inspect: picture -> %s\n", picture_path.c_str());
     }
     kdrt_tree_free(tree);
-    return common::close_stdout("kdrt-inspect", status);  // a report lost to a full disk is a failure
+    return status;
+}
+
+}  // namespace
+
+int main(int argc, char **argv)
+{
+    // A report lost to a full disk is a failure too (close_stdout).
+    return common::guarded_main("kdrt-inspect", [&] { return run(argc, argv); });
 }

@@ -27,29 +27,84 @@ PACKAGES=(
 
 usage() {
   cat <<USAGE
-usage: bash tools/setup.sh [--check] [--list] [--help]
+usage: bash tools/setup.sh [--check] [--list] [--lock-timeout SECONDS] [--help]
 
 Installs the Debian packages kdrt needs that are not installed yet:
   ${PACKAGES[*]}
 It asks dpkg first and does nothing more when all are there, so it is quick to run again.
 Otherwise it runs 'apt-get update' and 'apt-get install -y --no-install-recommends' on the
 missing ones, non-interactively, through sudo unless it runs as root. Made for Debian 12.
+When another package manager holds apt's or dpkg's lock (unattended upgrades on a fresh
+machine), it says so and waits for it, up to --lock-timeout seconds.
 
-  --check   only report missing packages; exit 1 if any are missing
-  --list    print the package list, one per line
-  --help    this text
+  --check                  only report missing packages; exit 1 if any are missing
+  --list                   print the package list, one per line
+  --lock-timeout SECONDS   how long to wait for a held lock (default 600)
+  --help                   this text
 USAGE
 }
 
 check_only=0
-for arg in "$@"; do
-  case "$arg" in
+lock_timeout=600
+while [[ $# -gt 0 ]]; do
+  case "$1" in
     -h|--help) usage; exit 0 ;;
     --list) printf '%s\n' "${PACKAGES[@]}"; exit 0 ;;
     --check) check_only=1 ;;
-    *) echo "setup.sh: unknown argument '$arg'" >&2; usage >&2; exit 2 ;;
+    --lock-timeout)
+      if [[ $# -lt 2 || ! $2 =~ ^[0-9]+$ ]]; then
+        echo "setup.sh: --lock-timeout wants a whole number of seconds, not '${2-}'" >&2; exit 2
+      fi
+      lock_timeout=$2; shift ;;
+    *) echo "setup.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
+  shift
 done
+
+# The locks apt-get takes: the package lists' (update), dpkg's and the download cache's
+# (install). The KDRT_SETUP_* variables are for tests/check_tools.py, which holds locks of its own.
+lists_locks=("${KDRT_SETUP_LISTS_LOCK:-/var/lib/apt/lists/lock}")
+install_locks=("${KDRT_SETUP_DPKG_LOCK:-/var/lib/dpkg/lock-frontend}" "${KDRT_SETUP_DPKG_LOCK_INNER:-/var/lib/dpkg/lock}"
+               "${KDRT_SETUP_ARCHIVES_LOCK:-/var/cache/apt/archives/lock}")
+
+# The process holding a lock on FILE (from /proc/locks), as "process PID (NAME)"; nothing when
+# the file is absent or nobody holds it.
+lock_holder() {
+  local id major minor inode want pid
+  id=$(stat -L -c '%Hd %Ld %i' "$1" 2>/dev/null) || return 0
+  read -r major minor inode <<<"$id"
+  want=$(printf '%02x:%02x:%s' "$major" "$minor" "$inode")
+  pid=$(awk -v want="$want" '$2 != "->" && $6 == want { print $5; exit }' /proc/locks 2>/dev/null || true)
+  if [[ -z $pid ]]; then
+    return 0
+  elif [[ $pid == -1 ]]; then
+    echo "another process"
+  else
+    echo "process $pid ($(cat "/proc/$pid/comm" 2>/dev/null || echo '?'))"
+  fi
+}
+
+# Waits until none of the files is locked, up to lock_timeout seconds, saying whom it waits for.
+# apt-get fails at once on a held lock ("E: Could not get lock ..."); it waits too (for dpkg's
+# lock) with -o DPkg::Lock::Timeout, which covers a lock taken between this check and its own.
+wait_for_locks() {
+  local file holder waited=0
+  for file in "$@"; do
+    holder=$(lock_holder "$file")
+    [[ -z $holder ]] && continue
+    echo "setup.sh: waiting for the lock $file, held by $holder (up to ${lock_timeout} s) ..."
+    while [[ -n $holder ]]; do
+      if (( waited >= lock_timeout )); then
+        echo "setup.sh: cannot install: $file is still locked by $holder after ${lock_timeout} s; run setup.sh again when it is done (or give --lock-timeout)" >&2
+        exit 1
+      fi
+      sleep 1
+      waited=$((waited + 1))
+      holder=$(lock_holder "$file")
+    done
+    echo "setup.sh: $file is free (after ${waited} s)"
+  done
+}
 
 if ! command -v dpkg-query >/dev/null 2>&1; then
   echo "setup.sh: dpkg-query not found: this script is for Debian (12) and its derivatives" >&2
@@ -82,6 +137,9 @@ if [[ $(id -u) -ne 0 ]]; then
   as_root=(sudo)
 fi
 
-"${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update
-"${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends "${missing[@]}"
+apt_options=(-o "DPkg::Lock::Timeout=${lock_timeout}")
+wait_for_locks "${lists_locks[@]}"
+"${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get "${apt_options[@]}" update
+wait_for_locks "${install_locks[@]}"
+"${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get "${apt_options[@]}" install -y --no-install-recommends "${missing[@]}"
 echo "setup.sh: installed ${missing[*]}"

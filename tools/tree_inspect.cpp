@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -54,9 +55,13 @@ void box_corners(const kdrt_aabb &b, double out[8][3])
 const int box_edges[12][2] = {{0, 1}, {2, 3}, {4, 5}, {6, 7}, {0, 2}, {1, 3},
                               {4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
 
+// Whether s ends with tail (lowercase), in any case: OUT.PNG is a PNG too.
 bool ends_with(const std::string &s, const std::string &tail)
 {
-    return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+    if (s.size() < tail.size()) return false;
+    for (size_t i = 0; i < tail.size(); ++i)
+        if (std::tolower(static_cast<unsigned char>(s[s.size() - tail.size() + i])) != tail[i]) return false;
+    return true;
 }
 
 void append_png(void *context, void *data, int size)
@@ -265,7 +270,10 @@ bool write_boxes_picture(const common::Mesh &mesh, const kdrt_tree *tree, const 
             const double sx = (2.0 * (x + 0.5) / width - 1.0) * tan_half * aspect;
             const double sy = (1.0 - 2.0 * (y + 0.5) / height) * tan_half;
             const Vec3 d = normalize(forward + sx * right + sy * up);
-            kdrt_ray ray = {{float(eye.x), float(eye.y), float(eye.z)}, 0.0f, {float(d.x), float(d.y), float(d.z)}, INFINITY, 0};
+            kdrt_ray ray = {};  // tmin 0, and the walk starts at the root
+            ray.org[0] = float(eye.x), ray.org[1] = float(eye.y), ray.org[2] = float(eye.z);
+            ray.dir[0] = float(d.x), ray.dir[1] = float(d.y), ray.dir[2] = float(d.z);
+            ray.tmax = INFINITY;
             kdrt_hit hit;
             double *px = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
             px[0] = px[1] = px[2] = 0.97;  // a white page, so the boxes' colours read

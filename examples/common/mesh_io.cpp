@@ -21,12 +21,17 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <new>
 #include <set>
 #include <sstream>
 #include <unordered_map>
+
+#ifndef KDRT_MESH_DIR
+#define KDRT_MESH_DIR ""
+#endif
 
 namespace common {
 
@@ -526,6 +531,23 @@ Mesh torus(uint32_t rings, uint32_t sides, double major, double minor, double ti
             m.indices.insert(m.indices.end(), {v00, v10, v11, v00, v11, v01});
         }
     return m;
+}
+
+std::string mesh_dir()
+{
+    const char *from_environment = std::getenv("KDRT_MESH_DIR");
+    return from_environment && *from_environment ? from_environment : KDRT_MESH_DIR;
+}
+
+const char *configured_mesh_dir()
+{
+    return KDRT_MESH_DIR;
+}
+
+std::string mesh_dir_help()
+{
+    return std::string("$KDRT_MESH_DIR, else the one configured at build time: ") +
+           (*KDRT_MESH_DIR ? KDRT_MESH_DIR : "(none)");
 }
 
 }  // namespace common

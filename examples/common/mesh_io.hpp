@@ -55,6 +55,15 @@ struct MeshLoadStats {
 bool load_mesh(const std::string &path, Mesh &out, std::string &error, uint64_t heap_factor, uint64_t heap_floor,
                MeshLoadStats *stats, uint64_t cpu_seconds = mesh_cpu_seconds);
 
+// The folder of shared meshes (seed/, common/): the environment variable KDRT_MESH_DIR when it is
+// set and not empty, else the folder configured at build time (CMake's KDRT_MESH_DIR option);
+// read on every call. Whether it exists is the caller's question.
+std::string mesh_dir();
+// The folder configured at build time ("" when none was).
+const char *configured_mesh_dir();
+// For --help: "$KDRT_MESH_DIR, else the one configured at build time: PATH".
+std::string mesh_dir_help();
+
 // `levels` rounds of 4-to-1 midpoint subdivision (shared edges share their midpoint).
 Mesh subdivided(const Mesh &mesh, unsigned levels);
 

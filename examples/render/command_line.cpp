@@ -1,6 +1,7 @@
 #include "command_line.hpp"
 
 #include "common/output.hpp"  // common::UsageError
+#include "render.hpp"         // make_preset
 #include "common/parse.hpp"   // common::parse_count, common::parse_size
 
 namespace kr {
@@ -9,9 +10,14 @@ bool take_scene_arg(const std::string &arg, const std::function<std::string()> &
 {
     using common::UsageError;
     if (arg == "--preset") {
+        // An empty name is no preset, refused as an unknown one is, not the default.
         args.preset = next();
+        Scene unused;
+        std::string error;
+        if (args.preset.empty() && !make_preset(args.preset, unused, error)) throw UsageError{error};
     } else if (arg == "--scene") {
         args.scene_file = next();
+        if (args.scene_file.empty()) throw UsageError{"--scene needs a file, not ''"};
     } else if (arg == "--set") {
         args.sets.push_back(next());
     } else if (arg == "--size") {

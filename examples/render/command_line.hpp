@@ -21,7 +21,8 @@ struct SceneArgs {
 
 // When arg is --preset, --scene, --set, --size (WxH, sides 1..16384, at most 64 Mpixels),
 // --threads (1..1024) or --seed, reads its value with next() into args and returns true; a bad
-// value throws common::UsageError. Any other argument: false, args untouched.
+// value throws common::UsageError, and so does an empty --preset or --scene (which would otherwise
+// mean the default, PICTURE). Any other argument: false, args untouched.
 bool take_scene_arg(const std::string &arg, const std::function<std::string()> &next, SceneArgs &args);
 
 // Each --set KEY=VALUE applied to scene in turn (apply_setting). False at the first bad one, with

@@ -88,7 +88,7 @@ bool write_exr(const std::string &tmp, const Image &image, bool exr_float, std::
         file.setFrameBuffer(frame);
         file.writePixels(int(image.height));
     } catch (const std::exception &e) {
-        error = "cannot write " + tmp + ": " + e.what();
+        error = e.what();  // write_atomically names the user's path for the temporary
         return false;
     }
     return true;

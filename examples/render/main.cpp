@@ -1,5 +1,7 @@
 // kdrt-render: the original course ray tracer's renderer on kdrt, as a command-line tool.
 // Presets or a scene file, settings by name, PNG or OpenEXR, every core, IOR-sweep animations.
+#include "common/atomic_file.hpp"  // common::check_replaceable
+#include "common/mesh_io.hpp"  // common::mesh_dir_help
 #include "common/output.hpp"  // common::guarded_main, UsageError
 #include "common/parse.hpp"  // common::parse_count
 #include "render.hpp"
@@ -19,10 +21,6 @@
 #include <thread>
 #include <vector>
 
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR "../shared/meshes"
-#endif
-
 namespace {
 
 const char *const kUsage =
@@ -34,7 +32,8 @@ const char *const kUsage =
     "Renders a preset of the original ray tracer (default PICTURE) or a YAML scene file, and\n"
     "writes a PNG (sRGB, clamped) or an OpenEXR file (linear, half floats), by OUT's extension.\n"
     "\n"
-    "  --preset NAME       one of --list-presets (case-insensitive)\n"
+    "  --preset NAME       one of --list-presets (names of presets and settings, and true and\n"
+    "                      false, in any case)\n"
     "  --scene FILE        a YAML scene file (format: examples/render/scene_file.hpp)\n"
     "  --set KEY=VALUE     a setting, after the preset's or the file's own (repeatable):\n"
     "                      NSAMPLES, MAX_BOUNCES, SHADOW_RAYS, PHONG, ENABLE_MIRROR, ENABLE_GLASS,\n"
@@ -54,11 +53,13 @@ const char *const kUsage =
     "  --help              this text\n"
     "\n"
     "Meshes named by the presets and by MESH=NAME are DIR/common/NAME.obj, else DIR/seed/NAME.off,\n"
-    "with DIR = " KDRT_MESH_DIR ";\n"
+    "DIR being the mesh folder:\n"
+    "  MESH_DIR;\n"
     "without that folder the presets use a generated torus.\n"
     "\n"
-    "Exit status: 0 success, 1 failure (unreadable mesh or scene, unwritable output), 2 a bad\n"
-    "command line.\n";
+    "Every output file is checked before the render: one that cannot be written is a failure at\n"
+    "once. Exit status: 0 success, 1 failure (unreadable mesh or scene, unwritable output), 2 a bad\n"
+    "command line, 128+N killed by signal N (130 SIGINT, 143 SIGTERM; the old output kept).\n";
 
 using common::UsageError;
 
@@ -109,7 +110,9 @@ int run(int argc, char **argv)
         };
         if (kr::take_scene_arg(arg, value, args)) continue;
         if (arg == "--help" || arg == "-h") {
-            std::fputs(kUsage, stdout);
+            std::string usage = kUsage;
+            usage.replace(usage.find("MESH_DIR;"), 8, common::mesh_dir_help());
+            std::fputs(usage.c_str(), stdout);
             return 0;
         } else if (arg == "--list-presets") {
             for (const std::string &p : kr::preset_names()) std::printf("%s\n", p.c_str());
@@ -170,6 +173,11 @@ int run(int argc, char **argv)
         }
     }
 
+    // Every output file is checked before the work: a folder of that name, a read-only file or a
+    // folder no file can be created in fails now, not after the render.
+    for (uint32_t f = 0; f < (frame_values.empty() ? 1u : uint32_t(frame_values.size())); ++f)
+        if (!common::check_replaceable(frame_values.empty() ? out : frame_path(out, f), error)) return fail(error, 1);
+
     // The reference is read and its size checked before the render, not after it.
     kr::Image ref;
     if (!reference.empty()) {
@@ -184,7 +192,6 @@ int run(int argc, char **argv)
     if (!kr::load_textures(scene, error)) return fail(error, 1);
     std::string mesh_source;
     for (const kr::MeshInstance &m : scene.meshes) mesh_source += (mesh_source.empty() ? "" : ", ") + m.source;
-    if (!scene.meshes.empty()) std::fprintf(stderr, "kdrt-render: meshes: %s\n", mesh_source.c_str());
 
     const unsigned threads = options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
     options.threads = threads;

@@ -5,10 +5,6 @@
 #include <cmath>
 #include <sys/stat.h>
 
-#ifndef KDRT_MESH_DIR
-#define KDRT_MESH_DIR ""
-#endif
-
 namespace kr {
 namespace {
 
@@ -57,7 +53,7 @@ void place(MeshInstance &m)
 
 bool load_meshes(Scene &scene, std::string &error)
 {
-    const std::string dir = KDRT_MESH_DIR;
+    const std::string dir = common::mesh_dir();  // the environment's KDRT_MESH_DIR, else the configured one
     for (size_t i = 0; i < scene.meshes.size(); ++i) {
         MeshInstance &m = scene.meshes[i];
         // MESH replaces the scene's first mesh (the presets put their main one first).

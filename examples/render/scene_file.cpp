@@ -9,6 +9,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -101,6 +102,13 @@ std::string one_line(const std::string &text)
         } else out += c;
     }
     return out;
+}
+
+// Names from a list (types, generated meshes) are taken in any case, as presets and settings are.
+std::string lower(std::string text)
+{
+    for (char &c : text) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return text;
 }
 
 std::string quoted_list(const std::vector<std::string> &names)
@@ -401,9 +409,9 @@ bool Reader::read_materials(const Fields &top, Scene &scene, const std::map<std:
         if (names.count(m.name)) return fail(*f.find("name"), "material '" + m.name + "' is defined twice");
         std::string type = "phong";
         if (!text(f, "type", type, Need::optional)) return false;
-        if (type == "phong") m.kind = MaterialKind::phong;
-        else if (type == "mirror") m.kind = MaterialKind::mirror;
-        else if (type == "glass") m.kind = MaterialKind::glass;
+        if (lower(type) == "phong") m.kind = MaterialKind::phong;
+        else if (lower(type) == "mirror") m.kind = MaterialKind::mirror;
+        else if (lower(type) == "glass") m.kind = MaterialKind::glass;
         else return fail(*f.find("type"), "material 'type' must be phong, mirror or glass, got \"" + type + "\"");
         if (!colour(f, "ambient", m.ambient, Need::optional) || !colour(f, "diffuse", m.diffuse, Need::optional) ||
             !colour(f, "specular", m.specular, Need::optional) ||
@@ -452,7 +460,7 @@ bool Reader::read_objects(const Fields &top, Scene &scene, const std::map<std::s
         if (f.find("file")) {
             if (!readable_file(f, "file", m.file)) return false;
         } else if (generated) {
-            if (!generated->IsScalar() || generated->Scalar() != "torus")
+            if (!generated->IsScalar() || lower(generated->Scalar()) != "torus")
                 return fail(*generated, "mesh 'generated' must be torus, got " + describe(*generated));
             // The same stand-in torus kdrt-render-mesh and kdrt-bench generate; placement rescales it.
             m.mesh = common::torus(96, 48, 1.0, 0.35);
@@ -482,13 +490,13 @@ bool Reader::read_lights(const Fields &top, Scene &scene)
         Light l;
         std::string type;
         if (!text(f, "type", type, Need::required)) return false;
-        if (type == "sphere") {
+        if (lower(type) == "sphere") {
             l.kind = LightKind::sphere;
             if (!only_for(f, "corner", "quad lights") || !only_for(f, "edge_u", "quad lights") ||
                 !only_for(f, "edge_v", "quad lights") || !position(f, "center", l.center, Need::required) ||
                 !number(f, "radius", "a number > 0", [](double v) { return v > 0; }, l.radius, Need::optional))
                 return false;
-        } else if (type == "quad") {
+        } else if (lower(type) == "quad") {
             l.kind = LightKind::quad;
             if (!only_for(f, "center", "sphere lights") || !only_for(f, "radius", "sphere lights") ||
                 !edges(f, l.corner, l.edge_u, l.edge_v))

@@ -5,8 +5,9 @@
 // an empty list. Vectors are [x, y, z] of finite numbers, colours [r, g, b] of numbers >= 0;
 // numbers are plain (unquoted) YAML numbers, never .nan or .inf. Unknown or repeated keys are
 // errors, so a typo is reported rather than ignored. Textures and materials have names, and are
-// referred to by name from anywhere in the file. Keys marked (required) must be there; the others
-// default to the values in scene.hpp.
+// referred to by name from anywhere in the file (those names and the keys are case-sensitive;
+// the values named from a list, such as a type or `generated: torus`, are taken in any case).
+// Keys marked (required) must be there; the others default to the values in scene.hpp.
 //
 //   settings:    {NSAMPLES: 16, SHADOW_RAYS: 4, ...}   # the original's settings as --set takes
 //                # them (kr::apply_setting, names in any case); applied after the materials, so

@@ -1,6 +1,8 @@
 // kdrt-view: kdrt-render's presets and scene files in a window, ray traced on every core and
 // refined frame after frame while the camera stands still; keys for the settings and the kd-tree.
 // Without a person: --frames N --screenshot OUT.png, and --keys to replay keys.
+#include "common/atomic_file.hpp"  // common::check_replaceable
+#include "common/mesh_io.hpp"  // common::mesh_dir_help
 #include "common/output.hpp"  // common::guarded_main, UsageError
 #include "common/parse.hpp"   // common::parse_count
 #include "common/timing.hpp"  // common::Stopwatch
@@ -34,7 +36,8 @@ const char *const kUsage =
     "moves, more every frame while it stands still (after n frames the image is kdrt-render's with\n"
     "NSAMPLES = n and the same seed, bit for bit; NSAMPLES itself is not used).\n"
     "\n"
-    "  --preset NAME       one of kdrt-render --list-presets (case-insensitive); p and P cycle them\n"
+    "  --preset NAME       one of kdrt-render --list-presets (in any case, as setting names and\n"
+    "                      true and false are); p and P cycle them\n"
     "  --scene FILE        a YAML scene file (format: examples/render/scene_file.hpp)\n"
     "  --set KEY=VALUE     a setting, after each preset's or the file's own (repeatable; the names\n"
     "                      are kdrt-render's, see its --help)\n"
@@ -44,14 +47,16 @@ const char *const kUsage =
     "  --frames N          no person: render N frames (after the --keys), write --screenshot, exit\n"
     "  --keys K1,K2,...    with --frames: press these keys, one after each frame, before the N\n"
     "                      frames: p P w a S d q e Up Down Left Right PageUp PageDown g m s i\n"
-    "                      + - b k [ ] h F12 F2 Esc (S is shift+s)\n"
+    "                      + - b k [ ] h F12 F2 Esc (S is shift+s: a letter's case matters, the\n"
+    "                      longer names are taken in any case)\n"
     "  --orbit DEGREES     turn the camera about its target by DEGREES every frame, as a drag does,\n"
     "                      so every frame starts again at one sample a pixel (to measure the frame\n"
     "                      rate moving)\n"
     "  --no-preview        full size while the camera moves too (default: the frame after a move\n"
     "                      is rendered at half the width and height and shown doubled)\n"
     "  --screenshot OUT    the PNG F12 and F2 write (default kdrt-view-NNNN.png, the first free\n"
-    "                      number), and --frames at the end\n"
+    "                      number), and --frames at the end; checked at the start (one that\n"
+    "                      cannot be written is a failure before the first frame)\n"
     "  --stats             at exit, print the frames' milliseconds (median, mean) and MRays/s\n"
     "  --help              this text\n"
     "\n"
@@ -61,9 +66,12 @@ const char *const kUsage =
     "size (the tree rebuilt), b median / SAH builder; k the kd-tree's boxes, [ ] their depth;\n"
     "F12 or F2 a screenshot; h help; Esc quit. p and P load the preset's own settings again.\n"
     "\n"
+    "Meshes are kdrt-render's, from the mesh folder:\n"
+    "  MESH_DIR.\n"
     "Without a display it fails (set DISPLAY, or SDL_VIDEODRIVER=offscreen for no window at all).\n"
     "Exit status: 0 success, 1 failure (no display, unreadable scene, unwritable screenshot), 2 a\n"
-    "bad command line.\n";
+    "bad command line, 128+N killed by signal N (130 SIGINT, 143 SIGTERM: no screenshot is then\n"
+    "written, and an old file of that name is kept).\n";
 
 using common::UsageError;
 
@@ -142,6 +150,11 @@ struct Window {
             if (std::getenv("WAYLAND_DISPLAY")) drivers.push_back("wayland");
         }
         SDL_SetHint(SDL_HINT_FRAMEBUFFER_ACCELERATION, "0");
+        // SDL would turn SIGINT and SIGTERM into SDL_QUIT, a normal end that writes the
+        // --screenshot of fewer frames than asked over the old file. Without its handlers they
+        // end the process as they end kdrt-render (a screenshot being written then leaves no
+        // temporary: common::write_atomically).
+        SDL_SetHint(SDL_HINT_NO_SIGNAL_HANDLERS, "1");
         SDL_SetHint(SDL_HINT_RENDER_DRIVER, "software");
         std::string why = "DISPLAY is not set";
         for (const std::string &driver : drivers) {
@@ -228,7 +241,9 @@ int run(int argc, char **argv)
         };
         if (kr::take_scene_arg(arg, value, args)) continue;
         if (arg == "--help" || arg == "-h") {
-            std::fputs(kUsage, stdout);
+            std::string usage = kUsage;
+            usage.replace(usage.find("MESH_DIR."), 8, common::mesh_dir_help());
+            std::fputs(usage.c_str(), stdout);
             return 0;
         } else if (arg == "--frames") {
             const std::string v = value();
@@ -269,8 +284,14 @@ int run(int argc, char **argv)
         size_t start = 0;
         for (;;) {
             const size_t comma = keys_text.find(',', start);
-            const std::string k = keys_text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+            std::string k = keys_text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
             const std::vector<std::string> &names = view::key_names();
+            if (k.size() > 1)  // a name (Esc, PageUp, F12) in any case; a letter's case is shift
+                for (const std::string &n : names)
+                    if (n.size() == k.size() && std::equal(n.begin(), n.end(), k.begin(), [](char a, char b) {
+                            return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
+                        }))
+                        k = n;
             if (std::find(names.begin(), names.end(), k) == names.end()) {
                 std::string list;
                 for (const std::string &n : names) list += " " + n;
@@ -288,6 +309,8 @@ int run(int argc, char **argv)
     kr::Scene probe;
     if (options.scene_file.empty() && !options.preset.empty() && !kr::make_preset(options.preset, probe, error))
         throw UsageError{error};
+    // A screenshot that cannot be written fails now, not after the frames.
+    if (!screenshot.empty() && !common::check_replaceable(screenshot, error)) return fail(error, 1);
     Window window;
     if (!window.open(width, height, error)) return fail(error, 1);
     view::Viewer viewer(options);
