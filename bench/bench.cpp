@@ -1,4 +1,5 @@
 #include "bench.hpp"
+#include "common/mesh_io.hpp"  // common::mesh_dir_help
 #include "common/parse.hpp"
 #include "common/random.hpp"
 #include "common/timing.hpp"
@@ -179,7 +180,7 @@ std::string usage() {
            "--sweep runs the original course benchmark instead: the median builder at every max\n"
            "leaf size 0 (no tree), 1, 2, 3, 4, 6, 8, 12, ..., 768, 1024, no Embree.\n"
            "Meshes: OFF, OBJ, PLY, STL, glTF files, or folders of them. Default: the original's\n"
-           "meshes in ../shared/meshes/seed when present, else generated ones. hostile:KIND:N\n"
+           "meshes in the mesh folder's seed/ when present, else generated ones. hostile:KIND:N\n"
            "generates N triangles that push a kd-tree builder to its worst, KIND one of fan,\n"
            "cone, slivers, overlapping, identical (or soup: small random triangles, a big input).\n"
            "\n"
@@ -255,7 +256,7 @@ std::string usage() {
            "--scene merged,field measures kdrt_scene against one tree over the same triangles,\n"
            "with primary and diffuse rays (the frame's, made on the one tree) through both:\n"
            "  merged  the meshes (default: the bunny, the ogre and nefertiti of\n"
-           "          ../shared/meshes/common), each scaled to a unit box and set side by side, and\n"
+           "          the mesh folder's common/), each scaled to a unit box and set side by side, and\n"
            "          the back wall, as mesh geometries of one scene, against one tree of them all\n"
            "  field   --instances N (default 1000) of them, each simplified to about\n"
            "          --instance-triangles N triangles (default 3000; 0: whole), randomly turned,\n"
@@ -268,7 +269,9 @@ std::string usage() {
            "timed passes, each tracing every variant in turn; each row holds the median. It\n"
            "writes Scene;Layout;Query;Rays;RayCount;Triangles;StoredTriangles;Instances;BuildMs;\n"
            "TraceMs;MRaysPerSec;Versus;VersusRatio;Mismatches;EmbreeBuildMs;EmbreeMRaysPerSec;\n"
-           "EmbreeRatio;EmbreeMismatches (bench/README.md, \"Scenes\").\n";
+           "EmbreeRatio;EmbreeMismatches (bench/README.md, \"Scenes\").\n"
+           "\n"
+           "The mesh folder: " + common::mesh_dir_help() + ".\n";
 }
 
 bool parse_options(int argc, const char *const *argv, Options &out, std::string &error) {

@@ -12,6 +12,7 @@
 #include "oracle/reference.hpp"
 #include "common/atomic_file.hpp"
 #include "common/interrupt.hpp"
+#include "common/mesh_io.hpp"  // common::mesh_dir
 #include "common/output.hpp"
 #include "common/parse.hpp"
 #include "common/thread_scheduler.hpp"
@@ -443,14 +444,14 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
     std::vector<std::string> args = opt.inputs;
     if (args.empty()) {
         for (const char *name : {"stanford-bunny.obj", "ogre.obj", "nefertiti.obj"})
-            args.push_back(std::string(KDRT_MESH_DIR "/common/") + name);
+            args.push_back(common::mesh_dir() + "/common/" + name);
         std::error_code ec;
         if (!fs::is_regular_file(args[0], ec) || !fs::is_regular_file(args[1], ec) || !fs::is_regular_file(args[2], ec))
             args.clear();
     }
     std::vector<common::Mesh> meshes;
     if (args.empty()) {
-        progress.note("kdrt-bench: no meshes given and " KDRT_MESH_DIR "/common lacks stanford-bunny.obj, ogre.obj or "
+        progress.note("kdrt-bench: no meshes given and " + common::mesh_dir() + "/common lacks stanford-bunny.obj, ogre.obj or "
                       "nefertiti.obj: using generated meshes");
         for (Input &in : generated_inputs()) meshes.push_back(std::move(in.mesh));
     }
@@ -540,9 +541,9 @@ int run(int argc, char **argv) {
     int failures = 0;
     std::vector<Input> inputs;
     std::vector<std::string> args = opt.inputs;
-    if (args.empty() && fs::is_directory(KDRT_MESH_DIR "/seed")) args.push_back(KDRT_MESH_DIR "/seed");
+    if (args.empty() && fs::is_directory(common::mesh_dir() + "/seed")) args.push_back(common::mesh_dir() + "/seed");
     if (args.empty()) {
-        progress.note("kdrt-bench: no meshes given and " KDRT_MESH_DIR "/seed is absent: using generated meshes");
+        progress.note("kdrt-bench: no meshes given and " + common::mesh_dir() + "/seed is absent: using generated meshes");
         inputs = generated_inputs();
     }
     const std::vector<std::string> files = mesh_files(args, progress, failures);
