@@ -208,6 +208,12 @@ std::string usage() {
            "                      (their _query forms with a filter that takes every hit: what\n"
            "                      an unused filter costs), comma-separated: each tree traced with\n"
            "                      each in turn, named in the Query column\n"
+           "  --start LIST        cell (each ray starts in the leaf that holds its origin, as\n"
+           "                      kdrt_spawn_ray() and kdrt_locate() give it: kdrt.h, START\n"
+           "                      CELLS) and/or root (the walk from the root), comma-separated:\n"
+           "                      each tree traced with each in turn, named in the Start column\n"
+           "                      (default: cell,root for diffuse and shadow rays, root for the\n"
+           "                      others, whose origin lies outside the tree)\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "                      | shadow (from the primary hits to a point light above the\n"
@@ -293,10 +299,10 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         std::string v;
         unsigned long long n = 0;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
-            arg == "--quality" || arg == "--query" || arg == "--sweep")
+            arg == "--quality" || arg == "--query" || arg == "--start" || arg == "--sweep")
             csv_only_option = arg;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--sah-costs" || arg == "--quality" ||
-            arg == "--query" || arg == "--builder" || arg == "--intersector" || arg == "--subdivide" ||
+            arg == "--query" || arg == "--start" || arg == "--builder" || arg == "--intersector" || arg == "--subdivide" ||
             arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep")
             not_scene_option = arg;
         if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
@@ -378,6 +384,12 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             if (!value(v)) return false;
             if (!parse_choices<std::string>(v, {{"plain", "plain"}, {"filter", "filter"}}, out.queries)) {
                 error = "--query wants plain, filter or both separated by a comma, got '" + v + "'";
+                return false;
+            }
+        } else if (arg == "--start") {
+            if (!value(v)) return false;
+            if (!parse_choices<std::string>(v, {{"cell", "cell"}, {"root", "root"}}, out.starts)) {
+                error = "--start wants cell, root or both separated by a comma, got '" + v + "'";
                 return false;
             }
         } else if (arg == "--scene") {
@@ -653,10 +665,16 @@ size_t count_occlusion_mismatches(const oracle::Oracle &oracle, const std::vecto
     return wrong;
 }
 
+std::vector<std::string> starts_for(const Options &opt) {
+    if (!opt.starts.empty()) return opt.starts;
+    if (opt.rays == RayKind::diffuse || opt.rays == RayKind::shadow) return {"cell", "root"};
+    return {"root"};
+}
+
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
            "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality;"
-           "Query";
+           "Query;Start";
 }
 
 std::string csv_row(const Row &row) {
@@ -682,7 +700,7 @@ std::string csv_row(const Row &row) {
         line.append(buf, size_t(n));
     }
     return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads) + ";" + row.quality + ";" +
-           row.query;
+           row.query + ";" + row.start;
 }
 
 // ---- kdrt-bench --accuracy ----

@@ -37,6 +37,8 @@ struct Options {
     std::vector<SahCosts> sah_costs;   // --sah-costs: a SAH variant each; empty: kdrt.h's defaults
     std::vector<kdrt_build_quality> qualities;  // --quality: a SAH variant each; empty: the default
     std::vector<std::string> queries{"plain"};  // --query: "plain" and/or "filter", traced in turn
+    // --start: "cell" and/or "root", traced in turn; empty: starts_for()'s default
+    std::vector<std::string> starts;
     RayKind rays = RayKind::primary;
     std::string output;                // "" means stdout
     // --compare embree or none. Not given: Embree when this kdrt-bench has it (main decides, as
@@ -79,6 +81,10 @@ struct BuildVariant {
     std::string quality;          // Quality column: quality_name() for sah, empty for median
 };
 std::vector<BuildVariant> build_variants(const Options &opt);
+
+// Where the traced rays start (--start): opt.starts, or "cell" and "root" for the rays that start
+// on the surface (diffuse, shadow) and "root" for the others.
+std::vector<std::string> starts_for(const Options &opt);
 
 // The max leaf size of a run without --leaf-sizes or --sweep: kdrt's default.
 constexpr uint32_t kDefaultLeafSize = KDRT_DEFAULT_MAX_LEAF_SIZE;
@@ -150,6 +156,7 @@ struct Row {
     unsigned build_threads = 1;        // threads the build ran on (Embree's too)
     std::string quality;               // the SAH build's quality, or Embree's ("low", "medium")
     std::string query;                 // Query column: "plain" or "filter"; empty on Embree rows
+    std::string start;                 // Start column: "cell" or "root"; empty on Embree rows
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

@@ -621,7 +621,7 @@ int run(int argc, char **argv) {
             ++failures;
             continue;
         }
-        const std::vector<kdrt_ray> rays = kb::make_rays(scene, opt.rays, opt.width, opt.height, scout, seed);
+        std::vector<kdrt_ray> rays = kb::make_rays(scene, opt.rays, opt.width, opt.height, scout, seed);
         kdrt_tree_free(scout);
 
         // The reference for a fixed sample of the rays, computed once for every row of this mesh.
@@ -674,7 +674,13 @@ int run(int argc, char **argv) {
                     row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
+                    // The rays' start cells in this tree, as kdrt_spawn_ray() gives them from its
+                    // hits (the cell that holds the origin), or none.
+                    std::vector<uint32_t> cells(rays.size(), 0u);
+                    for (size_t i = 0; i < rays.size(); ++i) cells[i] = kdrt_locate(tree, rays[i].org);
+                    for (const std::string &start : kb::starts_for(opt))
                     for (const std::string &query : opt.queries) {
+                        for (size_t i = 0; i < rays.size(); ++i) rays[i].cell = start == "cell" ? cells[i] : 0u;
                         // filter: the _query forms with a filter that takes every hit, the
                         // same answers as the plain queries at the cost of asking.
                         kdrt_query q = kdrt_default_query();
@@ -690,6 +696,7 @@ int run(int argc, char **argv) {
                             row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
                         }
                         row.query = query;
+                        row.start = start;
                         row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, row.triangles)
                                                 : kb::count_mismatches(oracle, refs, sample, rays, hits);
                         if (!csv.line(kb::csv_row(row), write_error)) {
@@ -716,6 +723,7 @@ int run(int argc, char **argv) {
                 row.build_threads = build_pool.threads();  // the device's threads, as kdrt's build's
                 row.intersector.clear();  // Embree's own test
                 row.query.clear();
+                row.start.clear();
                 row.max_leaf_size = -1;
                 row.has_tree_stats = false;
                 row.build_ms = peer.build_ms;

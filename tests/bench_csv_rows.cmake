@@ -19,8 +19,8 @@ function(check_whole_rows file min_rows)
   foreach(row IN LISTS lines)
     string(REGEX REPLACE "[^|]" "" separators "${row}")
     string(LENGTH "${separators}" c)
-    # The last three columns: BuildThreads, Quality (empty for the median builder), Query.
-    if(NOT c EQUAL columns OR NOT row MATCHES "^[A-Z0-9_]+\\|[0-9]+\\|[0-9]+\\|median\\|.*\\|[0-9]+\\|[a-z]*\\|plain$")
+    # The last four columns: BuildThreads, Quality (empty for the median builder), Query, Start.
+    if(NOT c EQUAL columns OR NOT row MATCHES "^[A-Z0-9_]+\\|[0-9]+\\|[0-9]+\\|median\\|.*\\|[0-9]+\\|[a-z]*\\|plain\\|root$")
       message(FATAL_ERROR "${file}: incomplete or wrong row: ${row}")
     endif()
   endforeach()

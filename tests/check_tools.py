@@ -529,7 +529,7 @@ class FramesToVideo(unittest.TestCase):
 
 class QualityTable(unittest.TestCase):
     HEADER = ("Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
-              "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality;Query")
+              "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality;Query;Start")
 
     def setUp(self):
         self.dir = Path(tempfile.mkdtemp(prefix="kdrt_quality_test_"))
@@ -547,7 +547,7 @@ class QualityTable(unittest.TestCase):
         kd = builder == "sah"
         return (f"BALL;{4 if kd else -1};1;{builder};1000;{build_ms};1;{mrays};{'10;5;3;8.00;80000' if kd else ';;;;'};"
                 f"{mismatches};100;{'watertight' if kd else ''};{'500.000' if kd else ''};{'30:20:0.1' if kd else ''};"
-                f"{threads};{quality};{'plain' if kd else ''}")
+                f"{threads};{quality};{'plain' if kd else ''};{'root' if kd else ''}")
 
     def test_levels_beside_embree_medians_and_ratios(self):
         r = self.row
@@ -574,7 +574,7 @@ class QualityTable(unittest.TestCase):
     def test_a_csv_without_the_quality_column_is_refused(self):
         old = self.dir / "old.csv"
         # The columns before Quality: a CSV from a kdrt-bench older than --quality.
-        old.write_text(self.HEADER.rsplit(";", 2)[0] + "\n" + self.row("sah", "fast", 1, 1).rsplit(";", 2)[0] + "\n")
+        old.write_text(self.HEADER.rsplit(";", 3)[0] + "\n" + self.row("sah", "fast", 1, 1).rsplit(";", 3)[0] + "\n")
         done = run([sys.executable, BENCH / "quality_table.py", "--primary", old, "--diffuse", old, "--two-threads", old])
         self.assertNotEqual(done.returncode, 0)
         self.assertIn("no Quality column", done.stderr)

@@ -1,0 +1,22 @@
+# Checks the CSV of the bench_start test (diffuse rays on the octahedron, leaf size 1): by default
+# each tree traces them from their start cells, then from the root (the Start column), on one
+# build, both without mismatches against the reference.
+file(STRINGS "${CSV}" lines)
+list(LENGTH lines n)
+if(NOT n EQUAL 3)
+  message(FATAL_ERROR "expected the header and 2 rows, got ${n} lines: ${lines}")
+endif()
+set(starts cell root)
+foreach(i 1 2)
+  list(GET lines ${i} row)
+  string(REPLACE ";" "|" row "${row}")
+  math(EXPR k "${i} - 1")
+  list(GET starts ${k} start)
+  if(NOT row MATCHES "^OCTAHEDRON\\|1\\|[0-9]+\\|sah\\|10\\|([0-9.]+)\\|.*\\|0\\|[0-9]+\\|watertight\\|.*\\|plain\\|${start}$")
+    message(FATAL_ERROR "row ${i}: expected a SAH row starting at the ${start} with no mismatches: ${row}")
+  endif()
+  set(build_ms_${i} "${CMAKE_MATCH_1}")
+endforeach()
+if(NOT build_ms_1 STREQUAL build_ms_2)
+  message(FATAL_ERROR "the two rows should share one build: ${build_ms_1} against ${build_ms_2} ms")
+endif()
