@@ -29,8 +29,11 @@ const char *const kUsage =
     "\n"
     "For each mesh (default: the seed nefertiti and the Stanford bunny from the mesh folder, else\n"
     "a generated torus), prints a Markdown table: per class of ray, the rays in it, the inner\n"
-    "nodes, leaves (empty ones), and triangle tests a ray takes on average, and its time in ns\n"
-    "(thread CPU time, best of N passes). SAH tree, leaf size 4, one thread.\n"
+    "nodes, leaves (empty ones), triangle tests, rope steps (cells left through a face), rope\n"
+    "nodes (inner nodes passed going down from a rope) and restarts (rope walks handed to the\n"
+    "walk from the root) a ray takes on average, and its time in ns (thread CPU time, best of N\n"
+    "passes). Diffuse and shadow rays from their start cells (kdrt_spawn_ray's) and from the\n"
+    "root. SAH tree, leaf size 4, one thread.\n"
     "  --size WxH   the frame (default 400x400)\n"
     "  --repeat N   timed passes per class, the fastest kept (default 5)\n"
     "  --subdivide N  split every triangle in 4, N times, before building (default 0)\n"
@@ -115,8 +118,9 @@ int run(int argc, char **argv)
         meshes.push_back(mesh);
     }
 
-    std::printf("| Mesh | Rays | Count | Inner nodes | Leaves (empty) | Triangle tests | ns per ray |\n");
-    std::printf("|---|---|---:|---:|---:|---:|---:|\n");
+    std::printf("| Mesh | Rays | Count | Inner nodes | Leaves (empty) | Triangle tests | Rope steps | Rope nodes | "
+                "Restarts | ns per ray |\n");
+    std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const common::Mesh &loaded : meshes) {
         const common::Mesh mesh = subdivide ? common::subdivided(loaded, subdivide) : loaded;
         const kb::Scene scene = kb::make_scene(mesh, mesh.name);
@@ -135,25 +139,36 @@ int run(int argc, char **argv)
         struct Class {
             const char *name;
             std::vector<kdrt_ray> rays;
-        } classes[5] = {{"primary, hitting the mesh, pixel order", {}},
+        } classes[9] = {{"primary, hitting the mesh, pixel order", {}},
                         {"the same, shuffled", {}},
                         {"primary, past the mesh to the wall", {}},
-                        {"diffuse, leaving the mesh", {}},
-                        {"diffuse, hitting the mesh again", {}}};
+                        {"diffuse, leaving the mesh, from its start cell", {}},
+                        {"diffuse, hitting the mesh again, from its start cell", {}},
+                        {"diffuse, leaving the mesh, from the root", {}},
+                        {"diffuse, hitting the mesh again, from the root", {}},
+                        {"shadow, from its start cell", {}},
+                        {"shadow, from the root", {}}};
         for (const kdrt_ray &ray : primary) classes[on_mesh(ray) ? 0 : 2].rays.push_back(ray);
         classes[1].rays = classes[0].rays;
         common::Rng rng(7);
         for (size_t i = classes[1].rays.size(); i > 1; --i) std::swap(classes[1].rays[i - 1], classes[1].rays[rng.below(uint32_t(i))]);
         for (const kdrt_ray &ray : diffuse) classes[on_mesh(ray) ? 4 : 3].rays.push_back(ray);
+        // The same rays from the root: kdrt_spawn_ray gave them their start cells (kdrt.h, START
+        // CELLS); shadow rays are timed with kdrt_intersect too, to the light at t = 1.
+        for (int k = 0; k < 2; ++k)
+            for (kdrt_ray ray : classes[3 + k].rays) ray.cell = 0, classes[5 + k].rays.push_back(ray);
+        classes[7].rays = kb::make_rays(scene, kb::RayKind::shadow, width, height, tree, 1);
+        for (kdrt_ray ray : classes[7].rays) ray.cell = 0, classes[8].rays.push_back(ray);
         for (const Class &c : classes) {
             if (c.rays.empty()) continue;
             kdrt_traversal_stats work;
             std::string error;
             if (!kb::count_traversal(view, options, c.rays, work, error)) return fail(error);
             const double n = double(c.rays.size());
-            std::printf("| %s | %s | %zu | %.1f | %.1f (%.1f) | %.1f | %.0f |\n", scene.name.c_str(), c.name,
-                        c.rays.size(), work.inner_nodes / n, work.leaves / n, work.empty_leaves / n,
-                        work.triangle_tests / n, ns_per_ray(tree, c.rays, repeat));
+            std::printf("| %s | %s | %zu | %.1f | %.1f (%.1f) | %.1f | %.1f | %.1f | %.3f | %.0f |\n", scene.name.c_str(),
+                        c.name, c.rays.size(), work.inner_nodes / n, work.leaves / n, work.empty_leaves / n,
+                        work.triangle_tests / n, work.rope_steps / n, work.rope_nodes / n, work.restarts / n,
+                        ns_per_ray(tree, c.rays, repeat));
         }
         kdrt_tree_free(tree);
     }

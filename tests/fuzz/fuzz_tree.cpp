@@ -11,6 +11,8 @@
 //  - the build succeeds or fails with a NULL tree and nothing left allocated, and fails exactly
 //    where a leaf-size-0 build of the same mesh does (and as kdrt_aabb_of_triangles does);
 //  - the statistics agree with the nodes kdrt_tree_node() describes;
+//  - a ray started from any cell (kdrt_ray.cell: located, random, a rope, any node) gets the
+//    walk from the root's answer;
 //  - every hit lies in the ray's range on an existing triangle, kdrt_occluded() agrees with
 //    kdrt_intersect(), kdrt_hit_surface() gives a finite point and a unit normal;
 //  - every tree returns bit for bit what max_leaf_size = 0 (every triangle tested) returns, but
@@ -362,6 +364,42 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         check_hit_shape(brute, ray, h0, as_mesh);
         check_hit_shape(tree, ray, h, as_mesh);
         fuzz::context().clear();
+
+        // A start cell is only a hint (START CELLS): the located one, any number, a rope of the
+        // located leaf, any node. The answer is the walk from the root's, bit for bit, but for
+        // the one exception, a triangle missed by less than the rounding that still "hits".
+        kdrt_ray hinted = ray;
+        const uint32_t at = kdrt_locate(tree, ray.org), nodes = kdrt_tree_node_count(tree);
+        kdrt_node_info info;
+        switch (in.ConsumeIntegralInRange<int>(0, 3)) {
+        case 0: hinted.cell = at; break;
+        case 1: hinted.cell = in.ConsumeIntegral<uint32_t>(); break;
+        case 2:
+            hinted.cell = kdrt_tree_node(tree, at, &info) == KDRT_SUCCESS && info.is_leaf ? info.ropes[in.ConsumeIntegralInRange<int>(0, 5)] : 0;
+            break;
+        default: hinted.cell = in.ConsumeIntegralInRange<uint32_t>(0, nodes); break;
+        }
+        kdrt_hit hh;
+        const int hit_hinted = kdrt_intersect(tree, &hinted, &hh);
+        FUZZ_CHECK(kdrt_occluded(tree, &hinted) == hit_hinted, "hinted: kdrt_occluded disagrees with kdrt_intersect");
+        if (!same_answer(hh, h)) {
+            check_hit_shape(tree, hinted, hh, as_mesh);
+            const bool undefined = options.intersector == KDRT_INTERSECTOR_FAST &&
+                                   ((hit && !fast_defined(as_mesh, h.triangle, ray)) || (hit_hinted && !fast_defined(as_mesh, hh.triangle, ray)));
+            if (!oracle) oracle.reset(new oracle::Oracle(as_mesh));
+            const oracle::Reference ref = oracle->trace(ray);
+            oracle::Agreement tally;
+            oracle::check_hit(*oracle, ref, ray, h, tally);
+            oracle::check_hit(*oracle, ref, ray, hh, tally);
+            const bool sure = ref.sure_hit && hit && hit_hinted && ref.sure_triangle == h.triangle && ref.sure_triangle == hh.triangle;
+            if (!undefined && (tally.wrong != 0 || sure)) {
+                std::fprintf(stderr, "%s", describe_ray(ray).c_str());
+                std::fprintf(stderr, "  start cell %u\n", hinted.cell);
+                print_hit("from the root", h);
+                print_hit("from the cell", hh);
+            }
+            FUZZ_CHECK(undefined || (tally.wrong == 0 && !sure), "the answer from start cell %u differs from the root's", hinted.cell);
+        }
         if (same_answer(h, h0)) continue;
         if (options.intersector == KDRT_INTERSECTOR_FAST &&
             ((hit0 && !fast_defined(as_mesh, h0.triangle, ray)) || (hit && !fast_defined(as_mesh, h.triangle, ray))))
