@@ -98,7 +98,9 @@ static float shade(const kdrt_tree *tree, const kdrt_ray &ray, bool primary, Cou
     float light = std::max(0.0f, dot(n, to_light) / std::sqrt(dot(to_light, to_light)));
     if (light > 0) { // only the lit side needs a shadow ray
         kdrt_ray shadow;
-        kdrt_spawn_ray(tree, &hit, to_light, &shadow); // starts off the surface: no self-shadowing
+        kdrt_spawn_ray(tree, &hit, to_light, &shadow); // starts off the surface: no self-shadowing,
+                                                       // and in the hit's cell: no descent (kdrt.h,
+                                                       // START CELLS)
         for (int k = 0; k < 3; ++k) shadow.dir[k] = kLight[k] - shadow.org[k]; // t = 1 at the light,
         shadow.tmax = 0.999f;                                                  // so stop short of it
         ++counts.shadow_rays;
@@ -163,7 +165,27 @@ int main() {
             image[size_t(y) * width + x] = " .:-=+*#%@"[std::min(9, int(10 * shade(tree, ray, true, counts)))];
         }
     });
+
+    // Line of sight from an eye inside the level, between the boxes, to points on the ground:
+    // kdrt_locate() finds the cell that holds the eye once, and every ray from there starts in it
+    // instead of descending from the root. A cell is only a hint: the answers are the same.
+    const float eye[3] = {0.25f, 0.3f, 0.25f};
+    const uint32_t eye_cell = kdrt_locate(tree, eye);
+    uint32_t visible = 0, differ = 0;
+    for (int i = 0; i < 1000; ++i) {
+        const float gx = 7.0f * (i % 40) / 39 - 3.5f, gz = 7.0f * (i / 40) / 24 - 3.5f;
+        kdrt_ray sight = {{eye[0], eye[1], eye[2]}, 0, {gx - eye[0], 0.001f - eye[1], gz - eye[2]}, 1.0f, eye_cell};
+        const int blocked = kdrt_occluded(tree, &sight);
+        sight.cell = 0; // from the root, for the check
+        differ += blocked != kdrt_occluded(tree, &sight);
+        visible += !blocked;
+    }
+    std::printf("from an eye inside the level (cell %u): %u of 1000 ground points in sight\n", eye_cell, visible);
     kdrt_tree_free(tree);
+    if (eye_cell == 0 || differ) {
+        std::fprintf(stderr, "the eye's cell is %u, and %u answers from it differ from the root's\n", eye_cell, differ);
+        return 1;
+    }
 
     for (int y = 0; y < height; ++y) std::printf("|%.*s|\n", width, &image[size_t(y) * width]);
     std::printf("%u of %d pixels hit, %u bounces hit, %u shadow rays, %.1f%% of them shadowed\n", counts.hits.load(),

@@ -206,9 +206,10 @@
      caller's index buffer to three scattered vertices: each leaf's triangles in blocks of 8
      (320 bytes: the 9 corner coordinates of 8 triangles and their indices; a triangle crossing
      leaves is in each), the leaves' blocks in depth-first order, and 4 bytes a block for the
-     inspection API. A soup costs what its indexed mesh does; skipped and zero-area triangles
-     are not copied. kdrt_tree_stats.bytes counts it all: 74 to 79 bytes a triangle on the
-     meshes of bench/README.md.
+     inspection API, then each leaf's box and ropes and each node's leaf number (START CELLS:
+     48 bytes a leaf, 4 a node). A soup costs what its indexed mesh does; skipped and zero-area
+     triangles are not copied. kdrt_tree_stats.bytes counts it all: 79 to 84 bytes a triangle
+     on the meshes of bench/README.md (74 to 79 without the cells).
      Inspection: kdrt_tree_node_count(), kdrt_tree_node() (a node's kind, split, children, box,
      depth and leaf references) and kdrt_tree_reference() (the caller's triangle a reference
      names) walk a built tree without its internals.
@@ -3754,6 +3755,48 @@ static KDRT__FORCEINLINE int kdrt__rope_step(const kdrt_tree *tree, const kdrt__
     return 1;
 }
 
+/* One leaf of a walk: its blocks tested by the tree's kernel, taking nearer hits into best; 1 when
+   any_hit and one was found (the walk is then done). Shared by the rope walk and the walk from
+   the root, and inlined into each, so that their constant arguments reach it. */
+static KDRT__FORCEINLINE int kdrt__test_leaf(const kdrt_tree *tree, const kdrt__node *n,
+                                             const kdrt__ray_setup *s, kdrt_hit *best, int any_hit,
+                                             int ruled, uint32_t *tested,
+                                             kdrt_traversal_stats *stats)
+{
+    /* Indexed, not a pointer formed up front: an empty tree has no blocks at all. */
+    uint32_t i, first = n->u.first, count = kdrt__node_count(n);
+    KDRT__COUNT(stats, leaves, 1);
+    KDRT__COUNT(stats, empty_leaves, count == 0);
+#ifdef KDRT__AVX2
+    if (tree->simd) {
+        for (i = 0; i < count; i += KDRT__LANES) {
+            const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
+            kdrt__candidates candidates;
+            const unsigned mask = tree->watertight ? kdrt__block_watertight_avx2(block, s, &candidates)
+                                                   : kdrt__block_fast_avx2(block, s, &candidates);
+            const int found = mask && kdrt__accept_lanes(best, block, mask, &candidates, s, ruled);
+            KDRT__COUNT(stats, block_tests, 1);
+            KDRT__COUNT(stats, triangle_tests, count - i < KDRT__LANES ? count - i : KDRT__LANES);
+            if (found && any_hit) return 1;
+        }
+        return 0;
+    }
+#endif
+    for (i = 0; i < count; ++i) {
+        const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
+        const uint32_t lane = i % KDRT__LANES, id = block->id[lane];
+        uint32_t *box = &tested[id & (KDRT__MAILBOX - 1u)];
+        int found;
+        if (*box == id) continue;
+        *box = id;
+        KDRT__COUNT(stats, triangle_tests, 1);
+        found = tree->watertight ? kdrt__intersect_watertight(block, lane, s, best, ruled)
+                                 : kdrt__intersect_fast(block, lane, s, best, ruled);
+        if (found && any_hit) return 1;
+    }
+    return 0;
+}
+
 /* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
    counting is compiled in and it is not NULL, gets the work done. Inlined into each query, so
    that a plain one (no rules, no list: ruled a constant 0) is the walk without rules. */
@@ -3762,16 +3805,13 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
                                             kdrt__hit_list *list, kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
-    uint32_t sp = 0, node = 0;
+    uint32_t sp = 0, node;
     /* Mailbox (scalar kernel): the triangles tested last, by their low bits. A triangle split
        across leaves is tested once per ray: a second test could only repeat the first answer. */
     uint32_t tested[KDRT__MAILBOX];
     kdrt__ray_setup s;
-    float t0, t1, root_t0, root_t1;
-    /* The rope walk (from the ray's start cell, leaf to leaf) while roping, else the walk from the
-       root with a stack; the cell holding the best hit so far, and the rope steps taken. */
-    int roping;
-    uint32_t hit_cell = 0, steps = 0;
+    float t0, t1;
+    uint32_t hit_cell = 0; /* the leaf that holds the best hit so far (kdrt_hit.cell) */
     /* Whether rules or a list apply (a list comes with rules, which name its hits): from the
        arguments, not from s, so that it is a constant where they are. */
     const int ruled = rules != NULL;
@@ -3784,11 +3824,36 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
     s.list = list; /* best is then the bound: the list's last hit once it is full */
     s.rules = rules;
     best->t = kdrt__list_bound(list, best->t); /* full from an earlier walk (scenes) */
-    root_t0 = t0, root_t1 = t1;
-    node = kdrt__start_cell(tree, ray->cell, s.org);
-    roping = node != KDRT__NO_ROPE;
-    if (!roping) node = 0;
 
+    node = kdrt__start_cell(tree, ray->cell, s.org);
+    if (node != KDRT__NO_ROPE) {
+        /* The rope walk: from the start cell leaf to leaf, until the best hit lies in the cell
+           or the ray leaves the tree. A ray cannot pass more cells than there are: more steps are
+           a tree whose odd splits (the median builder's may lie outside a node's box) it does not
+           trust. Where a step is in doubt, the cells behind have been tested up to restart: from
+           there, the walk from the root takes over what is left of the range. */
+        uint32_t steps = 0, next;
+        float restart = t0;
+        int step;
+        for (;;) {
+            if (kdrt__test_leaf(tree, &tree->nodes[node], &s, best, any_hit, ruled, tested, stats))
+                return 1;
+            step = kdrt__rope_step(tree, &tree->cells[tree->cell_of[node]], &s, best->t, &next,
+                                   &restart, stats);
+            if (step == 0) {
+                hit_cell = node;
+                goto done;
+            }
+            if (step < 0 || ++steps > tree->stats.leaves) break;
+            node = next;
+        }
+        KDRT__COUNT(stats, restarts, 1);
+        if (restart > t0) t0 = restart;
+        if (t0 > best->t) goto done;
+    }
+
+    /* The walk from the root, with a stack. */
+    node = 0;
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
         if (!kdrt__node_is_leaf(n)) {
@@ -3796,65 +3861,8 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
             node = kdrt__descend(n, node, &s, &t0, &t1, stack, &sp);
             continue;
         }
-        {
-            /* Indexed, not a pointer formed up front: an empty tree has no blocks at all. */
-            uint32_t i, first = n->u.first, count = kdrt__node_count(n);
-            KDRT__COUNT(stats, leaves, 1);
-            KDRT__COUNT(stats, empty_leaves, count == 0);
-#ifdef KDRT__AVX2
-            if (tree->simd) {
-                for (i = 0; i < count; i += KDRT__LANES) {
-                    const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
-                    kdrt__candidates candidates;
-                    const unsigned mask = tree->watertight
-                                              ? kdrt__block_watertight_avx2(block, &s, &candidates)
-                                              : kdrt__block_fast_avx2(block, &s, &candidates);
-                    const int found =
-                        mask && kdrt__accept_lanes(best, block, mask, &candidates, &s, ruled);
-                    KDRT__COUNT(stats, block_tests, 1);
-                    KDRT__COUNT(stats, triangle_tests, count - i < KDRT__LANES ? count - i : KDRT__LANES);
-                    if (found && any_hit) return 1;
-                }
-                count = 0; /* done: the scalar loop below has nothing left */
-            }
-#endif
-            for (i = 0; i < count; ++i) {
-                const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
-                const uint32_t lane = i % KDRT__LANES, id = block->id[lane];
-                uint32_t *box = &tested[id & (KDRT__MAILBOX - 1u)];
-                int found;
-                if (*box == id) continue;
-                *box = id;
-                KDRT__COUNT(stats, triangle_tests, 1);
-                found = tree->watertight ? kdrt__intersect_watertight(block, lane, &s, best, ruled)
-                                         : kdrt__intersect_fast(block, lane, &s, best, ruled);
-                if (found && any_hit) return 1;
-            }
-        }
-        if (roping) {
-            float restart;
-            uint32_t next;
-            const int step = kdrt__rope_step(tree, &tree->cells[tree->cell_of[node]], &s, best->t,
-                                             &next, &restart, stats);
-            if (step == 0) {
-                hit_cell = node;
-                break;
-            }
-            /* A ray cannot pass more cells than there are: more steps are a tree whose odd
-               splits (the median builder's may lie outside a node's box) it cannot trust. */
-            if (step > 0 && ++steps <= tree->stats.leaves) {
-                node = next;
-                continue;
-            }
-            /* The cells behind have been tested up to restart: from there, the walk from the root
-               over what is left of the range. */
-            KDRT__COUNT(stats, restarts, 1);
-            roping = 0, node = 0, sp = 0;
-            t0 = restart > root_t0 ? restart : root_t0, t1 = root_t1;
-            if (t0 > best->t) break;
-            continue;
-        }
-        if (best->t <= t1) hit_cell = node; /* the best hit so far may lie in this leaf */
+        if (kdrt__test_leaf(tree, n, &s, best, any_hit, ruled, tested, stats)) return 1;
+        if (!any_hit && best->t <= t1) hit_cell = node; /* the best hit so far may lie here */
         /* Next node that starts no later than the best hit: any triangle in a node starting
            beyond it is farther away. */
         do {

@@ -306,3 +306,52 @@ TEST_CASE("cells: kdrt_locate and the hit's cell hold their point; a miss has ce
     CHECK(hits > 1000);
     CHECK(far == 0);
 }
+
+TEST_CASE("cells: scene queries from the mesh tree's cells get the root walk's answers", "[cells][scene]") {
+    // Two meshes in the scene's tree and an instance beside and through them: the world ray's
+    // cell is the mesh tree's (kdrt_scene_locate, kdrt_scene_spawn_ray); instances start at their
+    // root. Nearest, any and k nearest hits bit for bit with and without it.
+    const Mesh ball = kt::sphere(24, 36, 1.5), ground = kt::translated(kt::grid(24, 24, 5), -12, -12, -2);
+    const kt::TreePtr ball_tree = kt::build(ball, 4);
+    const float placed[12] = {0.5f, 0, 0, 1.0f, 0, 0.5f, 0, 0.5f, 0, 0, 0.5f, 0.25f};
+    std::vector<kdrt_geometry> entries = {kdrt_mesh_geometry(1, nullptr), kdrt_mesh_geometry(2, nullptr),
+                                          kdrt_instance_geometry(3, ball_tree.get(), placed)};
+    entries[0].mesh = ball.view(), entries[1].mesh = ground.view();
+    kdrt_scene *scene = nullptr;
+    REQUIRE(kdrt_scene_build(entries.data(), uint32_t(entries.size()), nullptr, &scene, nullptr) == KDRT_SUCCESS);
+    const kdrt_aabb box = kdrt_scene_bounds(scene);
+    common::Rng rng(11);
+    size_t rays = 0, different = 0, with_cell = 0;
+    auto compare = [&](const kdrt_ray &hinted) {
+        kdrt_ray root = hinted;
+        root.cell = 0;
+        kdrt_hit a, b, ka[3], kb[3];
+        const int fa = kdrt_scene_intersect(scene, &hinted, nullptr, &a), fb = kdrt_scene_intersect(scene, &root, nullptr, &b);
+        bool same = same_answer(a, fa, b, fb) && (!fa || (a.geometry == b.geometry && a.instance == b.instance));
+        same = same && kdrt_scene_occluded(scene, &hinted, nullptr) == kdrt_scene_occluded(scene, &root, nullptr);
+        const uint32_t na = kdrt_scene_intersect_k(scene, &hinted, nullptr, ka, 3), nb = kdrt_scene_intersect_k(scene, &root, nullptr, kb, 3);
+        same = same && na == nb;
+        for (uint32_t i = 0; same && i < na; ++i) same = same_answer(ka[i], 1, kb[i], 1) && ka[i].geometry == kb[i].geometry;
+        ++rays, different += !same, with_cell += hinted.cell != 0;
+    };
+    const size_t count = std::max<size_t>(kt::reference_ray_count() / 4, 2000);
+    for (size_t i = 0; i < count; ++i) {
+        kdrt_ray r{};
+        for (int a = 0; a < 3; ++a) r.org[a] = float(rng.range(box.min[a], box.max[a]));
+        random_direction(rng, r.dir);
+        r.tmax = kInf;
+        r.cell = kdrt_scene_locate(scene, r.org);
+        compare(r);
+        kdrt_hit hit;
+        if (!kdrt_scene_intersect(scene, &r, nullptr, &hit)) continue;
+        float dir[3];
+        random_direction(rng, dir);
+        kdrt_ray next;
+        REQUIRE(kdrt_scene_spawn_ray(scene, &hit, dir, &next));
+        compare(next);
+    }
+    kdrt_scene_free(scene);
+    INFO(rays << " rays, " << with_cell << " with a start cell");
+    CHECK(different == 0);
+    CHECK(with_cell > rays / 4);
+}

@@ -40,6 +40,7 @@ using common::Rng;
 
 struct Ray {
     Vec3 origin, dir;  // dir unit length
+    uint32_t cell = 0; // where its walk starts in the scene's mesh tree (kdrt.h, START CELLS); 0: the root
 };
 
 // Rays traced by this thread (every intersect and occluded call), for kdrt-view's MRays/s.
@@ -103,6 +104,7 @@ struct View {
     Vec3 position, forward, right, up;
     double tan_half = 0, aspect = 0;
     kdrt_media_stack air;
+    uint32_t cell = 0; // the camera's start cell: every camera ray shares its one descent
 };
 
 bool make_view(const Scene &sc, uint32_t W, uint32_t H, View &view, std::string &error)
@@ -184,7 +186,8 @@ struct Renderer::Impl {
 
     // The nearest sphere, quad, mesh or light the ray meets (lights are seen by every traced ray).
     bool intersect(const Ray &ray, Hit &hit) const;
-    bool occluded(Vec3 origin, Vec3 target) const;
+    bool occluded(const Ray &from, Vec3 target) const;
+    uint32_t cell_of(Vec3 point) const;
     Ray spawn(const Hit &hit, Vec3 dir) const;
     Vec3 texture(int texture_index, double u, double v) const;
     Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, Rng &rng) const;
@@ -241,6 +244,7 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
         to_float(ray.origin, kray.org);
         to_float(ray.dir, kray.dir);
         kray.tmin = 0;
+        kray.cell = ray.cell;
         kray.tmax = hit.t < kInf ? float(hit.t) : INFINITY;
         kdrt_hit kh;
         if (kdrt_scene_intersect(world, &kray, nullptr, &kh) && kh.t < hit.t)
@@ -290,10 +294,19 @@ bool Renderer::Impl::intersect(const Ray &ray, Hit &hit) const
     return true;
 }
 
-// A shadow ray from origin to target: blocked by any sphere, quad or mesh between (lights are
-// not occluders; glass casts a full shadow, as in the original).
-bool Renderer::Impl::occluded(Vec3 origin, Vec3 target) const
+// The start cell of a ray from point in the scene's mesh tree (0 without meshes, or outside).
+uint32_t Renderer::Impl::cell_of(Vec3 point) const
 {
+    float p[3];
+    to_float(point, p);
+    return world ? kdrt_scene_locate(world, p) : 0u;
+}
+
+// A shadow ray from `from`'s origin (and start cell) to target: blocked by any sphere, quad or
+// mesh between (lights are not occluders; glass casts a full shadow, as in the original).
+bool Renderer::Impl::occluded(const Ray &from, Vec3 target) const
+{
+    const Vec3 origin = from.origin;
     ++t_rays;
     const Vec3 d = target - origin;
     const double dist = length(d);
@@ -310,6 +323,7 @@ bool Renderer::Impl::occluded(Vec3 origin, Vec3 target) const
     to_float(d, kray.dir);  // target at t = 1 (kdrt_spawn_ray's rule for shadow rays)
     kray.tmin = 0;
     kray.tmax = 1;
+    kray.cell = from.cell;
     return kdrt_scene_occluded(world, &kray, nullptr) != 0;
 }
 
@@ -324,12 +338,14 @@ Ray Renderer::Impl::spawn(const Hit &hit, Vec3 dir) const
         kdrt_ray kray;
         kdrt_scene_spawn_ray(world, &hit.mesh_hit, fdir, &kray);
         next.origin = to_vec(kray.org);
+        next.cell = kray.cell;  // the hit's own cell, which kdrt_scene_spawn_ray checked
     } else {
         float p[3], n[3], out[3];
         to_float(hit.point, p);
         to_float(hit.normal, n);
         kdrt_offset_ray_origin(p, n, fdir, out);
         next.origin = to_vec(out);
+        next.cell = cell_of(next.origin);
     }
     return next;
 }
@@ -381,7 +397,7 @@ Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec
             if (n_dot_l <= 0) continue;
             if (st.shadow_rays > 0) {
                 const Ray shadow = spawn(hit, l);
-                if (occluded(shadow.origin, q)) continue;
+                if (occluded(shadow, q)) continue;
             }
             Vec3 c = n_dot_l * (m.diffuse * tex);
             if (st.phong) {
@@ -495,7 +511,7 @@ Vec3 Renderer::Impl::sample(const View &v, uint32_t x, uint32_t y, bool jitter, 
     const double jx = jitter ? rng.uniform() : 0.5, jy = jitter ? rng.uniform() : 0.5;
     const double sx = (2.0 * (x + jx) / W - 1.0) * v.tan_half * v.aspect;
     const double sy = (1.0 - 2.0 * (y + jy) / H) * v.tan_half;
-    const Ray ray{v.position, normalize(v.forward + sx * v.right + sy * v.up)};
+    const Ray ray{v.position, normalize(v.forward + sx * v.right + sy * v.up), v.cell};
     return radiance(ray, scene->settings.max_bounces, v.air, rng);
 }
 
@@ -585,7 +601,7 @@ std::vector<PathEvent> Renderer::trace_specular_path(Vec3 origin, Vec3 direction
     std::vector<PathEvent> path;
     kdrt_media_stack media;
     kdrt_media_init(&media, float(im.scene->settings.air_index_medium));
-    Ray ray{origin, normalize(direction)};
+    Ray ray{origin, normalize(direction), im.cell_of(origin)};
     for (uint32_t i = 0; i < max_events; ++i) {
         Hit hit;
         if (!im.intersect(ray, hit) || hit.kind == HitKind::light) break;
@@ -627,6 +643,7 @@ bool Renderer::render(const RenderOptions &options, Image &image, std::string &e
     const Scene &sc = *im.scene;
     View view;
     if (!make_view(sc, options.width, options.height, view, error)) return false;
+    view.cell = im.cell_of(view.position);
     const uint32_t W = options.width, H = options.height;
     image.width = W, image.height = H;
     image.rgb.assign(size_t(W) * H * 3, 0.0f);
@@ -717,6 +734,7 @@ bool Renderer::accumulate(const RenderOptions &options, Accumulation &acc, commo
     }
     View view;
     if (!make_view(*im.scene, options.width, options.height, view, error)) return false;
+    view.cell = im.cell_of(view.position);
     const uint32_t W = options.width, H = options.height;
     if (acc.width != W || acc.height != H || acc.sum.size() != size_t(W) * H * 3) {
         acc.width = W, acc.height = H, acc.samples = 0;
