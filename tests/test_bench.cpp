@@ -493,7 +493,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
                                                 "Intersector", "SahCost", "SahCosts", "BuildThreads", "Quality",
-                                                "Query"});
+                                                "Query", "Start"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
