@@ -86,7 +86,7 @@ TEST_CASE("bench options parse and reject bad values by name", "[bench]") {
     CHECK_FALSE(parse({"--builder", "sah,"}, opt, error));
 }
 
-TEST_CASE("bench defaults: kdrt's default tree beside Embree; --sweep, the original's leaf-size run", "[bench]") {
+TEST_CASE("bench defaults: kdrt's default tree beside Embree, and --sweep, the original's leaf-size run", "[bench]") {
     kb::Options opt;
     std::string error;
     // No option: the SAH builder at its default quality and costs, leaf size 4, once, and Embree

@@ -225,7 +225,7 @@ void compare_hinted(const kdrt_tree *tree, const kdrt_tree *other, size_t count,
 
 }  // namespace
 
-TEST_CASE("cells: every rope names a node covering its face; boundary faces have none", "[cells]") {
+TEST_CASE("cells: every rope names a node covering its face, and boundary faces have none", "[cells]") {
     const std::vector<Mesh> meshes = {kt::sphere(16, 24, 2.0), kt::grid(12, 12, 3), kt::random_soup(400, 5)};
     for (const Mesh &mesh : meshes)
         for (const kt::Builder &builder : kt::kBuilders)
@@ -273,7 +273,7 @@ TEST_CASE("cells: the other builders, qualities and leaf sizes, and stale cells 
         }
 }
 
-TEST_CASE("cells: kdrt_locate and the hit's cell hold their point; a miss has cell 0", "[cells]") {
+TEST_CASE("cells: kdrt_locate and the hit's cell hold their point, and a miss has cell 0", "[cells]") {
     const Mesh mesh = kt::sphere(16, 24, 2.0);
     const kt::TreePtr tree = kt::build(mesh, 4);
     const float inside[3] = {0.1f, 0.2f, -0.3f}, outside[3] = {5, 0, 0}, nan[3] = {kNaN, 0, 0};

@@ -347,7 +347,7 @@ TEST_CASE("query: a filter decides each candidate, for the nearest, any and k ne
     }
 }
 
-TEST_CASE("query: a filter that refuses every hit leaves nothing; NULL hit or tree", "[query]") {
+TEST_CASE("query: a filter that refuses every hit leaves nothing, and a NULL hit or tree", "[query]") {
     const common::Mesh mesh = kt::sphere(8, 16, 1.0);
     const kt::TreePtr tree = kt::build(mesh, 4, kt::kBuilders[1]);
     kdrt_query none = kdrt_default_query();

@@ -1906,7 +1906,7 @@ TEST_CASE("scene: allocations are freed, queries allocate nothing, and any one f
                                                          << commit_calls << " (" << commit_survived << ")");
 }
 
-TEST_CASE("scene: empty scenes, one mesh, instances only; NULL arguments", "[scene][errors]") {
+TEST_CASE("scene: empty scenes, one mesh, instances only, and NULL arguments", "[scene][errors]") {
     const kdrt_ray ray = kt::ray_of(0.3f, 0.2f, -5, 0, 0, 1);
     kdrt_hit hit{};
     kdrt_hit list[4];
