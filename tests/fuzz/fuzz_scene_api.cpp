@@ -49,24 +49,7 @@
 
 namespace {
 
-// Counts live blocks; fails allocation number fail_at (1-based; 0: never).
-struct Heap {
-    size_t calls = 0, live = 0, fail_at = 0;
-    bool failed = false;
-    static void *alloc(void *user, size_t size) {
-        Heap *h = static_cast<Heap *>(user);
-        if (++h->calls == h->fail_at) return h->failed = true, nullptr;
-        void *p = std::malloc(size);
-        if (p) ++h->live;
-        return p;
-    }
-    static void free(void *user, void *p) {
-        Heap *h = static_cast<Heap *>(user);
-        FUZZ_CHECK(p != nullptr, "free(NULL) through the allocator");
-        --h->live;
-        std::free(p);
-    }
-};
+using fuzz::Heap;
 
 // ---- the trees instances place ----
 

@@ -1,5 +1,6 @@
-// What the fuzz targets share: the check that turns a broken promise into a finding, and the
-// floats they draw, weighted towards the values where float code goes wrong.
+// What the fuzz targets share: the check that turns a broken promise into a finding, the
+// floats they draw, weighted towards the values where float code goes wrong, and a counting
+// allocator that can fail.
 #pragma once
 
 #include <fuzzer/FuzzedDataProvider.h>
@@ -59,3 +60,27 @@ inline float pick_float(FuzzedDataProvider &in)
             std::abort();                                                                      \
         }                                                                                      \
     } while (0)
+
+namespace fuzz {
+
+// An allocator for kdrt_allocator (user: the Heap) that counts live blocks and fails allocation
+// number fail_at (1-based; 0: never), saying in failed that it did.
+struct Heap {
+    size_t calls = 0, live = 0, fail_at = 0;
+    bool failed = false;
+    static void *alloc(void *user, size_t size) {
+        Heap *h = static_cast<Heap *>(user);
+        if (++h->calls == h->fail_at) return h->failed = true, nullptr;
+        void *p = std::malloc(size);
+        if (p) ++h->live;
+        return p;
+    }
+    static void free(void *user, void *p) {
+        Heap *h = static_cast<Heap *>(user);
+        FUZZ_CHECK(p != nullptr, "free(NULL) through the allocator");
+        --h->live;
+        std::free(p);
+    }
+};
+
+}  // namespace fuzz
