@@ -674,13 +674,11 @@ int run(int argc, char **argv) {
                     row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
                     row.has_tree_stats = true;
+                    for (const std::string &start : kb::starts_for(opt)) {
                     // The rays' start cells in this tree, as kdrt_spawn_ray() gives them from its
                     // hits (the cell that holds the origin), or none.
-                    std::vector<uint32_t> cells(rays.size(), 0u);
-                    for (size_t i = 0; i < rays.size(); ++i) cells[i] = kdrt_locate(tree, rays[i].org);
-                    for (const std::string &start : kb::starts_for(opt))
+                    for (kdrt_ray &ray : rays) ray.cell = start == "cell" ? kdrt_locate(tree, ray.org) : 0u;
                     for (const std::string &query : opt.queries) {
-                        for (size_t i = 0; i < rays.size(); ++i) rays[i].cell = start == "cell" ? cells[i] : 0u;
                         // filter: the _query forms with a filter that takes every hit, the
                         // same answers as the plain queries at the cost of asking.
                         kdrt_query q = kdrt_default_query();
@@ -703,6 +701,7 @@ int run(int argc, char **argv) {
                             kdrt_tree_free(tree);
                             return write_failed();
                         }
+                    }
                     }
                     kdrt_tree_free(tree);
                 }
