@@ -670,6 +670,18 @@ KDRT_API int kdrt_occluded_query(const kdrt_tree *tree, const kdrt_ray *ray,
 KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
                                    const kdrt_query *query, kdrt_hit *hits, uint32_t capacity);
 
+/* Batches (BATCHES): rays[0 .. count) traced as kdrt_intersect_query() / kdrt_occluded_query()
+   would trace each, hits[i] or occluded[i] (1 or 0) its answer, bit for bit whatever the batch's
+   size, order or coherence; returns how many hit. Neighbouring rays that share their directions'
+   signs walk the tree together, 8 at a time, when the kernel is AVX2 and query is plain (NULL,
+   or no flags, no filter and a mask every triangle passes); others go one by one. Allocates
+   nothing; safe from every thread at once. count 0, or a NULL tree or rays, trace nothing (hits
+   then all misses). */
+KDRT_API uint32_t kdrt_intersect_batch(const kdrt_tree *tree, const kdrt_ray *rays,
+                                       uint32_t count, const kdrt_query *query, kdrt_hit *hits);
+KDRT_API uint32_t kdrt_occluded_batch(const kdrt_tree *tree, const kdrt_ray *rays,
+                                      uint32_t count, const kdrt_query *query, uint8_t *occluded);
+
 /* The work one query did, for measuring. Counting is compiled in only
    where KDRT_TRAVERSAL_STATS is defined before the implementation; kdrt_intersect_counted()
    exists only there, and kdrt_intersect() stays free of it. */
@@ -779,6 +791,14 @@ KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
                                   const kdrt_query *query, kdrt_hit *hit);
 KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
                                  const kdrt_query *query);
+/* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
+   kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
+KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt_ray *rays,
+                                             uint32_t count, const kdrt_query *query,
+                                             kdrt_hit *hits);
+KDRT_API uint32_t kdrt_scene_occluded_batch(const kdrt_scene *scene, const kdrt_ray *rays,
+                                            uint32_t count, const kdrt_query *query,
+                                            uint8_t *occluded);
 KDRT_API uint32_t kdrt_scene_intersect_k(const kdrt_scene *scene, const kdrt_ray *ray,
                                          const kdrt_query *query, kdrt_hit *hits,
                                          uint32_t capacity);
@@ -3986,6 +4006,32 @@ KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
     return list.count;
 }
 
+/* ==== batches ==== */
+
+KDRT_API uint32_t kdrt_intersect_batch(const kdrt_tree *tree, const kdrt_ray *rays,
+                                       uint32_t count, const kdrt_query *query, kdrt_hit *hits)
+{
+    uint32_t i, found = 0;
+    if (!hits) return 0;
+    for (i = 0; i < count; ++i) {
+        if (tree && rays) found += (uint32_t)kdrt_intersect_query(tree, &rays[i], query, &hits[i]);
+        else kdrt__miss(&hits[i]);
+    }
+    return found;
+}
+
+KDRT_API uint32_t kdrt_occluded_batch(const kdrt_tree *tree, const kdrt_ray *rays,
+                                      uint32_t count, const kdrt_query *query, uint8_t *occluded)
+{
+    uint32_t i, found = 0;
+    if (!occluded) return 0;
+    for (i = 0; i < count; ++i) {
+        occluded[i] = (uint8_t)(tree && rays && kdrt_occluded_query(tree, &rays[i], query));
+        found += occluded[i];
+    }
+    return found;
+}
+
 /* ==== secondary rays ==== */
 
 /* An instance as the queries use it: the transform and its inverse in double, and the world
@@ -4745,6 +4791,32 @@ KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
 {
     kdrt_hit hit;
     return scene && ray && kdrt__scene_query(scene, ray, query, &hit, 1, NULL);
+}
+
+KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt_ray *rays,
+                                             uint32_t count, const kdrt_query *query,
+                                             kdrt_hit *hits)
+{
+    uint32_t i, found = 0;
+    if (!hits) return 0;
+    for (i = 0; i < count; ++i) {
+        if (scene && rays) found += (uint32_t)kdrt_scene_intersect(scene, &rays[i], query, &hits[i]);
+        else kdrt__miss(&hits[i]);
+    }
+    return found;
+}
+
+KDRT_API uint32_t kdrt_scene_occluded_batch(const kdrt_scene *scene, const kdrt_ray *rays,
+                                            uint32_t count, const kdrt_query *query,
+                                            uint8_t *occluded)
+{
+    uint32_t i, found = 0;
+    if (!occluded) return 0;
+    for (i = 0; i < count; ++i) {
+        occluded[i] = (uint8_t)(scene && rays && kdrt_scene_occluded(scene, &rays[i], query));
+        found += occluded[i];
+    }
+    return found;
 }
 
 KDRT_API uint32_t kdrt_scene_intersect_k(const kdrt_scene *scene, const kdrt_ray *ray,
