@@ -3471,6 +3471,16 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
                  : kdrt__accept(best, block->id[lane], t, u, v, s);
 }
 
+/* Inlined where a walk's speed depends on it: the plain queries are the walk without rules,
+   as fast as before rules existed, only if their constant arguments reach it. */
+#if defined(__GNUC__) || defined(__clang__)
+#define KDRT__FORCEINLINE __attribute__((always_inline)) inline
+#elif defined(_MSC_VER)
+#define KDRT__FORCEINLINE __forceinline
+#else
+#define KDRT__FORCEINLINE
+#endif
+
 /* ==== the AVX2 kernel: 8 triangles at a time ==== */
 
 /* Compiled with the compiler's per-function target attribute, so no -mavx2 is needed, and chosen
@@ -3523,50 +3533,44 @@ KDRT__TARGET_AVX2 static inline void kdrt__widen(__m256 x, __m256d out[2])
     out[1] = _mm256_cvtps_pd(_mm256_extractf128_ps(x, 1));
 }
 
-/* A filter in float before the exact edge functions: 1 when every lane surely has edge functions
-   of both signs, so that the exact test would reject every lane. An edge function a * b - c * d
+/* A filter in float before the exact edge functions: the lanes that surely have edge functions
+   of both signs, so that the exact test would reject them. An edge function a * b - c * d
    is negative where a * b < c * d; rounding is monotone, so where float's products compare
    a * b < c * d (or >), the exact ones do too. Equal float products (or a NaN from an overflow)
    say nothing, and the exact test decides. The products are compared, not subtracted: a
    compiler may fuse a * b - (c * d) into an FMA (-mfma -ffp-contract=fast), whose sign can be
    wrong. So the filter changes no answer, only how soon most blocks are left. */
-KDRT__TARGET_AVX2 static inline int kdrt__block_surely_missed_avx2(const __m256 x[3], const __m256 y[3])
+KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__surely_missed_avx2(const __m256 x[3], const __m256 y[3])
 {
-    __m256 neg = _mm256_setzero_ps(), pos = _mm256_setzero_ps();
-    int k;
-    for (k = 0; k < 3; ++k) {
-        const int i = (k + 2) % 3, j = (k + 1) % 3; /* edge j-i, weight of corner k, as below */
-        const __m256 a = _mm256_mul_ps(x[i], y[j]), b = _mm256_mul_ps(y[i], x[j]);
-        neg = _mm256_or_ps(neg, _mm256_cmp_ps(a, b, _CMP_LT_OQ));
-        pos = _mm256_or_ps(pos, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
-    }
-    return _mm256_movemask_ps(_mm256_and_ps(neg, pos)) == 0xFF;
+    /* edge j-i, the weight of corner k, for (k, i, j) = (0, 2, 1), (1, 0, 2), (2, 1, 0), as below;
+       written out, as compilers leave the loop of three rolled */
+    const __m256 a0 = _mm256_mul_ps(x[2], y[1]), b0 = _mm256_mul_ps(y[2], x[1]);
+    const __m256 a1 = _mm256_mul_ps(x[0], y[2]), b1 = _mm256_mul_ps(y[0], x[2]);
+    const __m256 a2 = _mm256_mul_ps(x[1], y[0]), b2 = _mm256_mul_ps(y[1], x[0]);
+    const __m256 neg = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(a0, b0, _CMP_LT_OQ),
+                                                 _mm256_cmp_ps(a1, b1, _CMP_LT_OQ)),
+                                    _mm256_cmp_ps(a2, b2, _CMP_LT_OQ));
+    const __m256 pos = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(a0, b0, _CMP_GT_OQ),
+                                                 _mm256_cmp_ps(a1, b1, _CMP_GT_OQ)),
+                                    _mm256_cmp_ps(a2, b2, _CMP_GT_OQ));
+    return (unsigned)_mm256_movemask_ps(_mm256_and_ps(neg, pos));
 }
 
-/* kdrt__intersect_watertight on a block's 8 lanes. */
-KDRT__TARGET_AVX2 static unsigned kdrt__block_watertight_avx2(const kdrt__block *block,
-                                                              const kdrt__ray_setup *s,
-                                                              kdrt__candidates *c)
+/* The exact part of kdrt__intersect_watertight on 8 lanes of corners already moved to the ray's
+   origin and sheared (x, y, z: corner k's in each lane), for the lanes of lanes. A lane is a
+   triangle of a block against one ray (kdrt__block_watertight_avx2), or a triangle against a
+   ray of a packet (kdrt__packet_leaf_avx2): the same arithmetic either way. */
+KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__watertight_lanes_avx2(const __m256 fx[3],
+                                                                     const __m256 fy[3],
+                                                                     const __m256 fz[3],
+                                                                     unsigned lanes,
+                                                                     kdrt__candidates *c)
 {
-    const int kx = s->kx, ky = s->ky, kz = s->kz;
-    const __m256 ox = _mm256_set1_ps(s->org[kx]), oy = _mm256_set1_ps(s->org[ky]);
-    const __m256 oz = _mm256_set1_ps(s->org[kz]);
-    const __m256 sx = _mm256_set1_ps(s->shear_x), sy = _mm256_set1_ps(s->shear_y);
-    const __m256 sz = _mm256_set1_ps(s->shear_z);
     const __m256d zero = _mm256_setzero_pd();
     __m256d x[3][2], y[3][2], z[3][2];
     unsigned mask = 0;
     int k, h;
-    __m256 fx[3], fy[3], fz[3];
-    for (k = 0; k < 3; ++k) {
-        const __m256 dx = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kx]), ox);
-        const __m256 dy = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + ky]), oy);
-        const __m256 dz = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kz]), oz);
-        fx[k] = _mm256_sub_ps(dx, _mm256_mul_ps(sx, dz));
-        fy[k] = _mm256_sub_ps(dy, _mm256_mul_ps(sy, dz));
-        fz[k] = _mm256_mul_ps(sz, dz);
-    }
-    if (kdrt__block_surely_missed_avx2(fx, fy)) return 0;
+    if ((kdrt__surely_missed_avx2(fx, fy) | ~lanes) == 0xFFFFFFFFu) return 0;
     for (k = 0; k < 3; ++k) kdrt__widen(fx[k], x[k]), kdrt__widen(fy[k], y[k]), kdrt__widen(fz[k], z[k]);
     {
         __m256d e0[2], e1[2], e2[2], det[2];
@@ -3586,6 +3590,7 @@ KDRT__TARGET_AVX2 static unsigned kdrt__block_watertight_avx2(const kdrt__block 
             keep = _mm256_andnot_pd(_mm256_and_pd(neg, pos), _mm256_cmp_pd(det[h], zero, _CMP_NEQ_UQ));
             mask |= (unsigned)_mm256_movemask_pd(keep) << (4 * h);
         }
+        mask &= lanes;
         if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
         c->front = 0;
         for (h = 0; h < 2; ++h) {
@@ -3601,6 +3606,29 @@ KDRT__TARGET_AVX2 static unsigned kdrt__block_watertight_avx2(const kdrt__block 
         }
     }
     return mask;
+}
+
+/* kdrt__intersect_watertight on a block's 8 lanes. */
+KDRT__TARGET_AVX2 static unsigned kdrt__block_watertight_avx2(const kdrt__block *block,
+                                                              const kdrt__ray_setup *s,
+                                                              kdrt__candidates *c)
+{
+    const int kx = s->kx, ky = s->ky, kz = s->kz;
+    const __m256 ox = _mm256_set1_ps(s->org[kx]), oy = _mm256_set1_ps(s->org[ky]);
+    const __m256 oz = _mm256_set1_ps(s->org[kz]);
+    const __m256 sx = _mm256_set1_ps(s->shear_x), sy = _mm256_set1_ps(s->shear_y);
+    const __m256 sz = _mm256_set1_ps(s->shear_z);
+    __m256 fx[3], fy[3], fz[3];
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const __m256 dx = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kx]), ox);
+        const __m256 dy = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + ky]), oy);
+        const __m256 dz = _mm256_sub_ps(_mm256_load_ps(block->corner[3 * k + kz]), oz);
+        fx[k] = _mm256_sub_ps(dx, _mm256_mul_ps(sx, dz));
+        fy[k] = _mm256_sub_ps(dy, _mm256_mul_ps(sy, dz));
+        fz[k] = _mm256_mul_ps(sz, dz);
+    }
+    return kdrt__watertight_lanes_avx2(fx, fy, fz, 0xFFu, c);
 }
 
 /* kdrt__intersect_fast on a block's 8 lanes. */
@@ -3665,15 +3693,6 @@ typedef struct kdrt__todo {
 #define KDRT__COUNT(stats, field, n) ((void)(stats)) /* compiled out: the hot loop stays as it is */
 #endif
 
-/* Inlined where a walk's speed depends on it: the plain queries are the walk without rules,
-   as fast as before rules existed, only if their constant arguments reach it. */
-#if defined(__GNUC__) || defined(__clang__)
-#define KDRT__FORCEINLINE __attribute__((always_inline)) inline
-#elif defined(_MSC_VER)
-#define KDRT__FORCEINLINE __forceinline
-#else
-#define KDRT__FORCEINLINE
-#endif
 
 /* One inner node of a walk (node, reached over [*t0, *t1]): the child to visit next, with its
    range in *t0, *t1, the other pushed on the stack when the ray may reach it too. */
@@ -3817,35 +3836,22 @@ static KDRT__FORCEINLINE int kdrt__test_leaf(const kdrt_tree *tree, const kdrt__
     return 0;
 }
 
-/* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
-   counting is compiled in and it is not NULL, gets the work done. Inlined into each query, so
-   that a plain one (no rules, no list: ruled a constant 0) is the walk without rules. */
-static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray,
-                                            const kdrt__rules *rules, kdrt_hit *best, int any_hit,
-                                            kdrt__hit_list *list, kdrt_traversal_stats *stats)
+/* kdrt__traverse's walk of a ray set up in *s over [t0, t1], best a miss with best->t its
+   bound; from the start cell hint when it holds the origin. */
+static KDRT__FORCEINLINE int kdrt__walk_ray(const kdrt_tree *tree, uint32_t hint,
+                                            const kdrt__ray_setup *s, float t0, float t1,
+                                            kdrt_hit *best, int any_hit, int ruled,
+                                            kdrt_traversal_stats *stats)
 {
     kdrt__todo stack[KDRT_MAX_DEPTH];
     uint32_t sp = 0, node;
     /* Mailbox (scalar kernel): the triangles tested last, by their low bits. A triangle split
        across leaves is tested once per ray: a second test could only repeat the first answer. */
     uint32_t tested[KDRT__MAILBOX];
-    kdrt__ray_setup s;
-    float t0, t1;
     uint32_t hit_cell = 0; /* the leaf that holds the best hit so far (kdrt_hit.cell) */
-    /* Whether rules or a list apply (a list comes with rules, which name its hits): from the
-       arguments, not from s, so that it is a constant where they are. */
-    const int ruled = rules != NULL;
-
-    KDRT_ASSERT(!list || rules);
-    kdrt__miss(best);
     memset(tested, 0xFF, sizeof tested);
-    if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
-    best->t = s.tmax;
-    s.list = list; /* best is then the bound: the list's last hit once it is full */
-    s.rules = rules;
-    best->t = kdrt__list_bound(list, best->t); /* full from an earlier walk (scenes) */
 
-    node = kdrt__start_cell(tree, ray->cell, s.org);
+    node = kdrt__start_cell(tree, hint, s->org);
     if (node != KDRT__NO_ROPE) {
         /* The rope walk: from the start cell leaf to leaf, until the best hit lies in the cell
            or the ray leaves the tree. A ray cannot pass more cells than there are: more steps are
@@ -3856,9 +3862,9 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
         float restart = t0;
         int step;
         for (;;) {
-            if (kdrt__test_leaf(tree, &tree->nodes[node], &s, best, any_hit, ruled, tested, stats))
+            if (kdrt__test_leaf(tree, &tree->nodes[node], s, best, any_hit, ruled, tested, stats))
                 return 1;
-            step = kdrt__rope_step(tree, &tree->cells[tree->cell_of[node]], &s, best->t, &next,
+            step = kdrt__rope_step(tree, &tree->cells[tree->cell_of[node]], s, best->t, &next,
                                    &restart, stats);
             if (step == 0) {
                 hit_cell = node;
@@ -3878,10 +3884,10 @@ static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ra
         const kdrt__node *n = &tree->nodes[node];
         if (!kdrt__node_is_leaf(n)) {
             KDRT__COUNT(stats, inner_nodes, 1);
-            node = kdrt__descend(n, node, &s, &t0, &t1, stack, &sp);
+            node = kdrt__descend(n, node, s, &t0, &t1, stack, &sp);
             continue;
         }
-        if (kdrt__test_leaf(tree, n, &s, best, any_hit, ruled, tested, stats)) return 1;
+        if (kdrt__test_leaf(tree, n, s, best, any_hit, ruled, tested, stats)) return 1;
         if (!any_hit && best->t <= t1) hit_cell = node; /* the best hit so far may lie here */
         /* Next node that starts no later than the best hit: any triangle in a node starting
            beyond it is farther away. */
@@ -3896,6 +3902,30 @@ done:
     best->cell = hit_cell;
     return 1;
 }
+
+/* The one traversal, front to back, for the nearest hit or (any_hit) the first found; stats, when
+   counting is compiled in and it is not NULL, gets the work done. Inlined into each query, so
+   that a plain one (no rules, no list: ruled a constant 0) is the walk without rules. */
+static KDRT__FORCEINLINE int kdrt__traverse(const kdrt_tree *tree, const kdrt_ray *ray,
+                                            const kdrt__rules *rules, kdrt_hit *best, int any_hit,
+                                            kdrt__hit_list *list, kdrt_traversal_stats *stats)
+{
+    kdrt__ray_setup s;
+    float t0, t1;
+    /* Whether rules or a list apply (a list comes with rules, which name its hits): from the
+       arguments, not from s, so that it is a constant where they are. */
+    const int ruled = rules != NULL;
+
+    KDRT_ASSERT(!list || rules);
+    kdrt__miss(best);
+    if (!kdrt__setup_ray(ray, &s) || !kdrt__clip_to_box(&tree->bounds, &s, &t0, &t1)) return 0;
+    best->t = s.tmax;
+    s.list = list; /* best is then the bound: the list's last hit once it is full */
+    s.rules = rules;
+    best->t = kdrt__list_bound(list, best->t); /* full from an earlier walk (scenes) */
+    return kdrt__walk_ray(tree, ray->cell, &s, t0, t1, best, any_hit, ruled, stats);
+}
+
 
 /* The rules for a walk of tree under query (NULL: none) in *storage, or NULL when the walk needs
    none (no flag, no filter, no mask to test, no list: force) and can run plain. instance: the
@@ -4006,13 +4036,530 @@ KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
     return list.count;
 }
 
-/* ==== batches ==== */
+/* ==== batches: packets of rays that walk the tree together ==== */
+
+#ifdef KDRT__AVX2
+static int kdrt__bit_count(unsigned bits)
+{
+    int n = 0;
+    for (; bits; bits &= bits - 1u) ++n;
+    return n;
+}
+
+/* The single-ray walk of a batch's ray, set up already (kdrt__walk_ray). Out of line: the batch
+   loop stays small. */
+KDRT__NOINLINE static int kdrt__walk_alone(const kdrt_tree *tree, uint32_t hint,
+                                           const kdrt__ray_setup *s, float t0, float t1,
+                                           kdrt_hit *best, int any_hit)
+{
+    return any_hit ? kdrt__walk_ray(tree, hint, s, t0, t1, best, 1, 0, NULL)
+                   : kdrt__walk_ray(tree, hint, s, t0, t1, best, 0, 0, NULL);
+}
+
+/* A packet (AVX2 kernel): up to 8 consecutive rays of a batch whose directions have no zero or
+   tiny component and share their signs and their largest axis, so that at every split plane
+   they take its sides in the same order and the watertight test shears them alike. Each lane
+   keeps its own setup, range and best hit, and takes at every node the decision kdrt__descend
+   takes for it alone, so each visits the leaves its own walk from the root visits, in the same
+   order, and gets the same answer bit for bit; the packet only shares the way. */
+typedef struct kdrt__packet {
+    kdrt__ray_setup s[KDRT__LANES];
+    float org[3][KDRT__LANES], inv_dir[3][KDRT__LANES]; /* the lanes' s, axis by axis */
+    float shear[3][KDRT__LANES]; /* the lanes' shear_x, _y, _z */
+    float bound[KDRT__LANES];    /* the best hit's t so far, or the range's end */
+    kdrt_hit *best[KDRT__LANES];
+    uint32_t hit_cell[KDRT__LANES]; /* as kdrt__walk_ray's hit_cell */
+    /* Watertight tree: the leaves are tested triangle by triangle against the packet
+       (kdrt__packet_leaf_avx2), within the bounds over the lanes of their origins' kx, ky, kz
+       (lo[0..3), hi[0..3)) and of their shear_x, shear_y (lo[3..5), hi[3..5)). */
+    int sheared, kx, ky, kz;
+    float lo[5], hi[5];
+    unsigned negative; /* bit a: the directions' component a is negative */
+    unsigned lanes;    /* lanes still walking */
+    unsigned alone;    /* lanes handed back to the single-ray walk (kdrt__packet_split_avx2) */
+    unsigned found;    /* any_hit: lanes that found one */
+} kdrt__packet;
+
+typedef struct kdrt__packet_todo {
+    uint32_t node;
+    unsigned lanes;
+    float t0[KDRT__LANES], t1[KDRT__LANES];
+} kdrt__packet_todo;
+
+/* The lanes' ranges at the children of a node, in the packet's order: first the child on the
+   side the rays come from (below when the directions' component on the axis is positive). */
+typedef struct kdrt__packet_sides {
+    unsigned first, second; /* the lanes that visit each */
+    float first_t1[KDRT__LANES], second_t0[KDRT__LANES]; /* first's t0 and second's t1 stay */
+} kdrt__packet_sides;
+
+/* kdrt__descend's decision at a plane for each lane of lanes, 8 at once with its operations, so
+   its decisions: near only, far only, both (near, the first, up to the plane, far from it), or the
+   origin on the plane (far, then the first, up to t = 0, near over the whole range). A lane whose
+   origin lies off the plane at a distance that rounds to t = 0 would have near first: it is
+   returned, to go back to the single-ray walk. */
+KDRT__TARGET_AVX2 static inline unsigned kdrt__packet_split_avx2(const kdrt__packet *p,
+                                                                 unsigned lanes, uint32_t axis,
+                                                                 float split,
+                                                                 const float t0[KDRT__LANES],
+                                                                 const float t1[KDRT__LANES],
+                                                                 kdrt__packet_sides *sides)
+{
+    const __m256 zero = _mm256_setzero_ps(), sp = _mm256_set1_ps(split);
+    const __m256 o = _mm256_loadu_ps(p->org[axis]), t_0 = _mm256_loadu_ps(t0);
+    const __m256 t_1 = _mm256_loadu_ps(t1);
+    const __m256 t_split = _mm256_mul_ps(_mm256_sub_ps(sp, o), _mm256_loadu_ps(p->inv_dir[axis]));
+    const __m256 lo = _mm256_mul_ps(t_split, _mm256_set1_ps(1.0f - KDRT__T_SLACK));
+    const __m256 hi = _mm256_mul_ps(t_split, _mm256_set1_ps(1.0f + KDRT__T_SLACK));
+    const __m256 near_first = (p->negative >> axis) & 1u ? _mm256_cmp_ps(o, sp, _CMP_GT_OQ)
+                                                         : _mm256_cmp_ps(o, sp, _CMP_LT_OQ);
+    const __m256 on_plane = _mm256_and_ps(_mm256_cmp_ps(t_split, zero, _CMP_EQ_OQ),
+                                          _mm256_cmp_ps(t_0, zero, _CMP_LE_OQ));
+    const __m256 near_only = _mm256_andnot_ps(
+        on_plane, _mm256_or_ps(_mm256_cmp_ps(t_split, zero, _CMP_LE_OQ), _mm256_cmp_ps(lo, t_1, _CMP_GT_OQ)));
+    const __m256 far_only = _mm256_andnot_ps(_mm256_or_ps(on_plane, near_only),
+                                             _mm256_cmp_ps(hi, t_0, _CMP_LT_OQ));
+    const __m256 both = _mm256_andnot_ps(_mm256_or_ps(_mm256_or_ps(on_plane, near_only), far_only),
+                                         _mm256_castsi256_ps(_mm256_set1_epi32(-1)));
+    const __m256 one_side = _mm256_or_ps(near_only, far_only);
+    /* near only and near first, or far only and far first: the first alone */
+    const __m256 first_only = _mm256_and_ps(one_side, _mm256_xor_ps(near_first, far_only));
+    const unsigned both_bits = (unsigned)_mm256_movemask_ps(_mm256_or_ps(both, on_plane));
+    const unsigned one_bits = (unsigned)_mm256_movemask_ps(one_side);
+    const unsigned first_bits = (unsigned)_mm256_movemask_ps(first_only);
+    _mm256_storeu_ps(sides->first_t1,
+                     _mm256_blendv_ps(_mm256_blendv_ps(t_1, hi, both), zero, on_plane));
+    _mm256_storeu_ps(sides->second_t0, _mm256_blendv_ps(t_0, lo, both));
+    sides->first = lanes & (both_bits | first_bits);
+    sides->second = lanes & (both_bits | (one_bits & ~first_bits));
+    return lanes & (unsigned)_mm256_movemask_ps(_mm256_and_ps(on_plane, near_first));
+}
+
+/* The triangles of a block that surely miss every ray of the packet: seen from each ray (its
+   origin moved to 0 and sheared along +z, as the watertight test sees it), all three corners lie
+   on one side of x = 0 or of y = 0. Rounding is monotone, so the test's own sheared corners of
+   every lane lie within the bounds computed here from the bounds of the lanes' origins and
+   shears (products at the box's corners); the margin, 2^-20 of the magnitudes, covers a compiler
+   that fuses the test's multiply and subtract. A triangle with its corners on one side of the ray
+   has edge functions of both signs: the test would reject it for each ray. */
+KDRT__TARGET_AVX2 static inline unsigned kdrt__packet_culled_avx2(const kdrt__block *block,
+                                                                  const kdrt__packet *p)
+{
+    const __m256 sign = _mm256_set1_ps(-0.0f), margin = _mm256_set1_ps(9.5367431640625e-7f);
+    const __m256 oz_lo = _mm256_set1_ps(p->lo[2]), oz_hi = _mm256_set1_ps(p->hi[2]);
+    const int axis[2] = {p->kx, p->ky};
+    __m256 culled = _mm256_setzero_ps();
+    int a, k;
+    for (a = 0; a < 2; ++a) {
+        const __m256 o_lo = _mm256_set1_ps(p->lo[a]), o_hi = _mm256_set1_ps(p->hi[a]);
+        const __m256 s_lo = _mm256_set1_ps(p->lo[3 + a]), s_hi = _mm256_set1_ps(p->hi[3 + a]);
+        __m256 above = _mm256_castsi256_ps(_mm256_set1_epi32(-1)), below = above;
+        for (k = 0; k < 3; ++k) {
+            const __m256 pz = _mm256_load_ps(block->corner[3 * k + p->kz]);
+            const __m256 pa = _mm256_load_ps(block->corner[3 * k + axis[a]]);
+            const __m256 dz_lo = _mm256_sub_ps(pz, oz_hi), dz_hi = _mm256_sub_ps(pz, oz_lo);
+            const __m256 d_lo = _mm256_sub_ps(pa, o_hi), d_hi = _mm256_sub_ps(pa, o_lo);
+            const __m256 w0 = _mm256_mul_ps(s_lo, dz_lo), w1 = _mm256_mul_ps(s_lo, dz_hi);
+            const __m256 w2 = _mm256_mul_ps(s_hi, dz_lo), w3 = _mm256_mul_ps(s_hi, dz_hi);
+            const __m256 w_lo = _mm256_min_ps(_mm256_min_ps(w0, w1), _mm256_min_ps(w2, w3));
+            const __m256 w_hi = _mm256_max_ps(_mm256_max_ps(w0, w1), _mm256_max_ps(w2, w3));
+            const __m256 x_lo = _mm256_sub_ps(d_lo, w_hi), x_hi = _mm256_sub_ps(d_hi, w_lo);
+            const __m256 size = _mm256_add_ps(
+                _mm256_max_ps(_mm256_andnot_ps(sign, d_lo), _mm256_andnot_ps(sign, d_hi)),
+                _mm256_max_ps(_mm256_andnot_ps(sign, w_lo), _mm256_andnot_ps(sign, w_hi)));
+            const __m256 m = _mm256_mul_ps(size, margin);
+            above = _mm256_and_ps(above, _mm256_cmp_ps(x_lo, m, _CMP_GT_OQ));
+            below = _mm256_and_ps(below, _mm256_cmp_ps(x_hi, _mm256_xor_ps(m, sign), _CMP_LT_OQ));
+        }
+        culled = _mm256_or_ps(culled, _mm256_or_ps(above, below));
+    }
+    return (unsigned)_mm256_movemask_ps(culled);
+}
+
+/* One leaf for the lanes of lanes of a sheared packet (kdrt__packet.sheared): the triangles no
+   cull rules out, each against the lanes' rays at once, with kdrt__intersect_watertight's
+   arithmetic in each lane; each lane's hits taken as its own walk takes them. Returns the lanes
+   that found one when any_hit. */
+KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, const kdrt__node *n,
+                                                         kdrt__packet *p, unsigned lanes,
+                                                         int any_hit)
+{
+    const uint32_t first = n->u.first, count = kdrt__node_count(n);
+    const int kx = p->kx, ky = p->ky, kz = p->kz;
+    const __m256 ox = _mm256_loadu_ps(p->org[kx]), oy = _mm256_loadu_ps(p->org[ky]);
+    const __m256 oz = _mm256_loadu_ps(p->org[kz]);
+    const __m256 sx = _mm256_loadu_ps(p->shear[0]), sy = _mm256_loadu_ps(p->shear[1]);
+    const __m256 sz = _mm256_loadu_ps(p->shear[2]);
+    unsigned found = 0;
+    uint32_t i;
+    for (i = 0; i < count; i += KDRT__LANES) {
+        const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
+        /* the block's own triangles: a last block's copies of its last one repeat its answer */
+        unsigned triangles = count - i < KDRT__LANES ? (1u << (count - i)) - 1u : 0xFFu;
+        triangles &= ~kdrt__packet_culled_avx2(block, p);
+        if (kdrt__bit_count(triangles) > kdrt__bit_count(lanes)) {
+            /* More triangles left than rays: each ray's test of the block costs less. */
+            unsigned left;
+            for (left = lanes; left; left &= left - 1u) {
+                const unsigned lane = (unsigned)__builtin_ctz(left);
+                kdrt__candidates c;
+                const unsigned mask = kdrt__block_watertight_avx2(block, &p->s[lane], &c);
+                if (!mask || !kdrt__accept_lanes(p->best[lane], block, mask, &c, &p->s[lane], 0))
+                    continue;
+                p->bound[lane] = p->best[lane]->t;
+                if (any_hit) found |= 1u << lane, lanes &= ~(1u << lane);
+            }
+            if (!lanes) return found;
+            continue;
+        }
+        for (; triangles; triangles &= triangles - 1u) {
+            const unsigned j = (unsigned)__builtin_ctz(triangles), id = block->id[j];
+            __m256 fx[3], fy[3], fz[3];
+            kdrt__candidates c;
+            unsigned hits;
+            int k;
+            for (k = 0; k < 3; ++k) {
+                const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(block->corner[3 * k + kx][j]), ox);
+                const __m256 dy = _mm256_sub_ps(_mm256_set1_ps(block->corner[3 * k + ky][j]), oy);
+                const __m256 dz = _mm256_sub_ps(_mm256_set1_ps(block->corner[3 * k + kz][j]), oz);
+                fx[k] = _mm256_sub_ps(dx, _mm256_mul_ps(sx, dz));
+                fy[k] = _mm256_sub_ps(dy, _mm256_mul_ps(sy, dz));
+                fz[k] = _mm256_mul_ps(sz, dz);
+            }
+            for (hits = kdrt__watertight_lanes_avx2(fx, fy, fz, lanes, &c); hits; hits &= hits - 1u) {
+                const unsigned lane = (unsigned)__builtin_ctz(hits);
+                kdrt_hit *best = p->best[lane];
+                if (!kdrt__accept(best, id, c.t[lane], c.u[lane], c.v[lane], &p->s[lane])) continue;
+                p->bound[lane] = best->t;
+                if (any_hit) found |= 1u << lane, lanes &= ~(1u << lane);
+            }
+            if (!lanes) return found;
+        }
+    }
+    return found;
+}
+
+/* The packet's walk from the root: kdrt__walk_ray's walk from the root for each lane, the lanes
+   that visit the same node at once. Inlined twice, so that any_hit is a constant. */
+KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tree *tree,
+                                                                  kdrt__packet *p,
+                                                                  const float t0_in[KDRT__LANES],
+                                                                  const float t1_in[KDRT__LANES],
+                                                                  int any_hit)
+{
+    kdrt__packet_todo stack[KDRT_MAX_DEPTH];
+    kdrt__packet_sides sides;
+    float t0[KDRT__LANES], t1[KDRT__LANES];
+    uint32_t sp = 0, node = 0;
+    unsigned lanes = p->lanes, lane;
+    memcpy(t0, t0_in, sizeof t0), memcpy(t1, t1_in, sizeof t1);
+    for (;;) {
+        const kdrt__node *n = &tree->nodes[node];
+        if (!kdrt__node_is_leaf(n)) {
+            const uint32_t axis = kdrt__node_axis(n);
+            const unsigned retire = kdrt__packet_split_avx2(p, lanes, axis, n->u.split, t0, t1, &sides);
+            if (retire) {
+                p->alone |= retire, p->lanes &= ~retire;
+                sides.first &= ~retire, sides.second &= ~retire;
+            }
+            if (sides.first && sides.second) {
+                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
+                stack[sp].node = node + 1, stack[sp].lanes = sides.second;
+                memcpy(stack[sp].t0, sides.second_t0, sizeof t0);
+                memcpy(stack[sp].t1, t1, sizeof t1);
+                if (!((p->negative >> axis) & 1u)) stack[sp].node = kdrt__node_above(n);
+                ++sp;
+            }
+            if (sides.first) {
+                const int below = !((p->negative >> axis) & 1u);
+                node = below ? node + 1 : kdrt__node_above(n);
+                lanes = sides.first;
+                memcpy(t1, sides.first_t1, sizeof t1);
+                continue;
+            }
+            if (sides.second) {
+                node = (p->negative >> axis) & 1u ? node + 1 : kdrt__node_above(n);
+                lanes = sides.second;
+                memcpy(t0, sides.second_t0, sizeof t0);
+                continue;
+            }
+        } else {
+            if (p->sheared) {
+                const unsigned found = kdrt__packet_leaf_avx2(tree, n, p, lanes, any_hit);
+                p->found |= found, p->lanes &= ~found, lanes &= ~found;
+            } else
+                for (lane = 0; lane < KDRT__LANES; ++lane) {
+                    if (!((lanes >> lane) & 1u)) continue;
+                    if (kdrt__test_leaf(tree, n, &p->s[lane], p->best[lane], any_hit, 0, NULL, NULL)) {
+                        p->found |= 1u << lane, p->lanes &= ~(1u << lane);
+                        continue;
+                    }
+                    p->bound[lane] = p->best[lane]->t;
+                }
+            if (!any_hit)
+                for (lane = 0; lane < KDRT__LANES; ++lane)
+                    if (((lanes >> lane) & 1u) && p->best[lane]->t <= t1[lane])
+                        p->hit_cell[lane] = node;
+        }
+        /* Next node, with the lanes still walking that start it no later than their best hit. */
+        for (;;) {
+            if (sp == 0) return;
+            --sp;
+            node = stack[sp].node;
+            lanes = stack[sp].lanes & p->lanes;
+            for (lane = 0; lane < KDRT__LANES; ++lane)
+                if (stack[sp].t0[lane] > p->bound[lane]) lanes &= ~(1u << lane);
+            if (lanes) break;
+        }
+        memcpy(t0, stack[sp].t0, sizeof t0), memcpy(t1, stack[sp].t1, sizeof t1);
+    }
+}
+
+KDRT__TARGET_AVX2 static void kdrt__packet_walk_avx2(const kdrt_tree *tree, kdrt__packet *p,
+                                                     const float t0[KDRT__LANES],
+                                                     const float t1[KDRT__LANES], int any_hit)
+{
+    if (any_hit) kdrt__packet_walk(tree, p, t0, t1, 1);
+    else kdrt__packet_walk(tree, p, t0, t1, 0);
+}
+
+typedef char kdrt__ray_is_9_floats[sizeof(kdrt_ray) == 9 * sizeof(float) ? 1 : -1];
+
+/* 1 where lanes of bits agree with the lane first: the movemask bits of one test. */
+static unsigned kdrt__same_bit(unsigned bits, unsigned first)
+{
+    return (bits >> first) & 1u ? bits : ~bits & 0xFFu;
+}
+
+/* kdrt__setup_ray and kdrt__clip_to_box for 8 rays at once, with their operations, so with their
+   results, for the lanes that can walk as a packet: finite, no zero component, a range that
+   meets the tree's box, and for the nearest hit no start cell. Of those, the lanes that share
+   the first one's direction signs and largest axis are returned, set up in p (s, org, inv_dir,
+   shear, bound, kx, ky, kz, negative) and t0, t1; the others are set up ray by ray. */
+KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
+                                                          const kdrt_ray *rays, kdrt__packet *p,
+                                                          float t0[KDRT__LANES],
+                                                          float t1[KDRT__LANES], int any_hit)
+{
+    const float *base = (const float *)(const void *)rays;
+    const __m256i stride = _mm256_setr_epi32(0, 9, 18, 27, 36, 45, 54, 63);
+    const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+    const __m256 sign = _mm256_set1_ps(-0.0f);
+    __m256 o[3], d[3], inv[3], abs_d[3], ok, tmin, tmax, enter, exit, kz1, kz2;
+    float dirs[3][KDRT__LANES], tmins[KDRT__LANES];
+    unsigned lanes, negative[3], first, left;
+    int a;
+    ok = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+    for (a = 0; a < 3; ++a) {
+        o[a] = _mm256_i32gather_ps(base + a, stride, 4);
+        d[a] = _mm256_i32gather_ps(base + 4 + a, stride, 4);
+        inv[a] = _mm256_div_ps(one, d[a]);
+        abs_d[a] = _mm256_andnot_ps(sign, d[a]);
+        /* finite origin and direction, no zero component, a finite inverse */
+        ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_sub_ps(o[a], o[a]), zero, _CMP_EQ_OQ));
+        ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_sub_ps(d[a], d[a]), zero, _CMP_EQ_OQ));
+        ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_sub_ps(inv[a], inv[a]), zero, _CMP_EQ_OQ));
+        ok = _mm256_and_ps(ok, _mm256_cmp_ps(d[a], zero, _CMP_NEQ_OQ));
+        negative[a] = (unsigned)_mm256_movemask_ps(d[a]);
+    }
+    tmin = _mm256_i32gather_ps(base + 3, stride, 4);
+    tmax = _mm256_i32gather_ps(base + 7, stride, 4);
+    tmin = _mm256_and_ps(tmin, _mm256_cmp_ps(tmin, zero, _CMP_GT_OQ)); /* NaN and -0 give +0 */
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(tmin, tmax, _CMP_LE_OQ));
+    if (!any_hit) /* a start cell: the ray takes its rope walk */
+        ok = _mm256_and_ps(ok, _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+                                   _mm256_castps_si256(_mm256_i32gather_ps(base + 8, stride, 4)),
+                                   _mm256_setzero_si256())));
+    enter = tmin, exit = tmax;
+    for (a = 0; a < 3; ++a) {
+        const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(tree->bounds.min[a]), o[a]), inv[a]);
+        const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(tree->bounds.max[a]), o[a]), inv[a]);
+        const __m256 a_first = _mm256_cmp_ps(ta, tb, _CMP_LT_OQ);
+        const __m256 tnear = _mm256_mul_ps(_mm256_blendv_ps(tb, ta, a_first), _mm256_set1_ps(1.0f - KDRT__T_SLACK));
+        const __m256 tfar = _mm256_mul_ps(_mm256_blendv_ps(ta, tb, a_first), _mm256_set1_ps(1.0f + KDRT__T_SLACK));
+        enter = _mm256_blendv_ps(enter, tnear, _mm256_cmp_ps(tnear, enter, _CMP_GT_OQ));
+        exit = _mm256_blendv_ps(exit, tfar, _mm256_cmp_ps(tfar, exit, _CMP_LT_OQ));
+    }
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(enter, exit, _CMP_LE_OQ));
+    lanes = (unsigned)_mm256_movemask_ps(ok);
+    if (!lanes) return 0;
+    /* kz, the first axis of the largest |dir| (kdrt__setup_ray's): 1 where kz1 and not kz2, 2 where kz2 */
+    kz1 = _mm256_cmp_ps(abs_d[1], abs_d[0], _CMP_GT_OQ);
+    kz2 = _mm256_cmp_ps(abs_d[2], _mm256_blendv_ps(abs_d[0], abs_d[1], kz1), _CMP_GT_OQ);
+    first = (unsigned)__builtin_ctz(lanes);
+    {
+        const unsigned m1 = (unsigned)_mm256_movemask_ps(kz1), m2 = (unsigned)_mm256_movemask_ps(kz2);
+        lanes &= kdrt__same_bit(negative[0], first) & kdrt__same_bit(negative[1], first) &
+                 kdrt__same_bit(negative[2], first) & kdrt__same_bit(m1, first) &
+                 kdrt__same_bit(m2, first);
+        p->kz = (m2 >> first) & 1u ? 2 : (m1 >> first) & 1u ? 1 : 0;
+    }
+    p->negative = ((negative[0] >> first) & 1u) | ((negative[1] >> first) & 1u) << 1 |
+                  ((negative[2] >> first) & 1u) << 2;
+    p->kx = (p->kz + 1) % 3, p->ky = (p->kx + 1) % 3;
+    if ((p->negative >> p->kz) & 1u) { const int k = p->kx; p->kx = p->ky, p->ky = k; }
+    _mm256_storeu_ps(t0, enter), _mm256_storeu_ps(t1, exit);
+    _mm256_storeu_ps(p->bound, tmax);
+    for (a = 0; a < 3; ++a) {
+        _mm256_storeu_ps(p->org[a], o[a]), _mm256_storeu_ps(p->inv_dir[a], inv[a]);
+        _mm256_storeu_ps(dirs[a], d[a]);
+    }
+    _mm256_storeu_ps(p->shear[0], _mm256_div_ps(d[p->kx], d[p->kz]));
+    _mm256_storeu_ps(p->shear[1], _mm256_div_ps(d[p->ky], d[p->kz]));
+    _mm256_storeu_ps(p->shear[2], _mm256_div_ps(one, d[p->kz]));
+    _mm256_storeu_ps(tmins, tmin);
+    for (left = lanes; left; left &= left - 1u) {
+        const unsigned lane = (unsigned)__builtin_ctz(left);
+        kdrt__ray_setup *s = &p->s[lane];
+        for (a = 0; a < 3; ++a)
+            s->org[a] = p->org[a][lane], s->dir[a] = dirs[a][lane], s->inv_dir[a] = p->inv_dir[a][lane];
+        s->tmin = tmins[lane], s->tmax = p->bound[lane];
+        s->list = NULL, s->rules = NULL;
+        s->kx = p->kx, s->ky = p->ky, s->kz = p->kz;
+        s->shear_x = p->shear[0][lane], s->shear_y = p->shear[1][lane], s->shear_z = p->shear[2][lane];
+    }
+    return lanes;
+}
+
+/* Fewer rays than this in a packet go one by one: the packet's bookkeeping would cost more than
+   the steps it shares. */
+#define KDRT__PACKET_MIN_LANES 2
+/* A packet whose origins span more than this fraction of the tree's box on an axis, or whose
+   shears span more than this, goes one by one: its rays part ways soon. */
+#define KDRT__PACKET_SPREAD 0.0625f
+
+/* kdrt__batch with the AVX2 kernel: 8 rays at a time, as a packet where they can be one. */
+KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const kdrt_ray *rays,
+                                                   uint32_t count, kdrt_hit *hits,
+                                                   uint8_t *occluded, int any_hit)
+{
+    kdrt__packet p;
+    kdrt_hit scratch[KDRT__LANES]; /* any_hit: the walk's hits, unused after */
+    kdrt_ray last[KDRT__LANES];    /* the last rays, when fewer than 8, and copies of the last */
+    uint32_t i, found = 0, skip = 0, failures = 0;
+    for (i = 0; i < count; i += KDRT__LANES) {
+        const uint32_t n = count - i < KDRT__LANES ? count - i : KDRT__LANES;
+        const kdrt_ray *group = rays + i;
+        float t0[KDRT__LANES], t1[KDRT__LANES];
+        unsigned lane, left, walked, alone;
+        if (skip) {
+            /* Incoherent rays: after packets that did not form, the next groups go straight
+               to the single-ray walk, a group more each time (up to 64), before trying again. */
+            --skip;
+            for (lane = 0; lane < n; ++lane) {
+                const int hit = any_hit ? kdrt_occluded(tree, &rays[i + lane])
+                                        : kdrt_intersect(tree, &rays[i + lane], &hits[i + lane]);
+                if (any_hit) occluded[i + lane] = (uint8_t)hit;
+                found += (uint32_t)hit;
+            }
+            continue;
+        }
+        if (n < KDRT__LANES) {
+            for (lane = 0; lane < KDRT__LANES; ++lane) last[lane] = rays[i + (lane < n ? lane : n - 1u)];
+            group = last;
+        }
+        p.lanes = kdrt__packet_setup_avx2(tree, group, &p, t0, t1, any_hit) & ((1u << n) - 1u);
+        /* The other rays' setup is SSE code: run with AVX's upper halves dirty, each of its
+           instructions waits on them (GCC inserts no vzeroupper before these calls). */
+        _mm256_zeroupper();
+        p.alone = p.found = 0;
+        p.sheared = tree->watertight;
+        alone = 0;
+        for (lane = 0; lane < n; ++lane) {
+            kdrt_hit *best = any_hit ? &scratch[lane] : &hits[i + lane];
+            p.best[lane] = best;
+            kdrt__miss(best);
+            if (!((p.lanes >> lane) & 1u)) {
+                /* not in the packet: set up alone, a miss or a ray of its own */
+                kdrt__ray_setup *s = &p.s[lane];
+                if (!kdrt__setup_ray(&group[lane], s) ||
+                    !kdrt__clip_to_box(&tree->bounds, s, &t0[lane], &t1[lane]))
+                    continue;
+                alone |= 1u << lane;
+            }
+            best->t = p.s[lane].tmax;
+            p.hit_cell[lane] = 0;
+        }
+        if (kdrt__bit_count(p.lanes) >= KDRT__PACKET_MIN_LANES) {
+            const int axis[3] = {p.kx, p.ky, p.kz};
+            int b;
+            for (b = 0; b < 5; ++b) p.lo[b] = INFINITY, p.hi[b] = -INFINITY;
+            for (left = p.lanes; left; left &= left - 1u) {
+                const unsigned l = (unsigned)__builtin_ctz(left);
+                const float x[5] = {p.org[axis[0]][l], p.org[axis[1]][l], p.org[axis[2]][l],
+                                    p.shear[0][l], p.shear[1][l]};
+                for (b = 0; b < 5; ++b) {
+                    p.lo[b] = x[b] < p.lo[b] ? x[b] : p.lo[b];
+                    p.hi[b] = x[b] > p.hi[b] ? x[b] : p.hi[b];
+                }
+            }
+            /* Rays that part ways soon share few steps: they go one by one. */
+            for (b = 0; b < 3; ++b)
+                if (p.hi[b] - p.lo[b] > KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]))
+                    alone |= p.lanes, p.lanes = 0;
+            if (p.hi[3] - p.lo[3] > KDRT__PACKET_SPREAD || p.hi[4] - p.lo[4] > KDRT__PACKET_SPREAD)
+                alone |= p.lanes, p.lanes = 0;
+        } else alone |= p.lanes, p.lanes = 0;
+        walked = p.lanes;
+        if (walked) failures = 0;
+        else if (++failures >= 2) skip = failures < 8 ? 1u << (failures - 2) : 64u;
+        if (walked) kdrt__packet_walk_avx2(tree, &p, t0, t1, any_hit);
+        walked &= ~p.alone;
+        for (left = p.alone; left; left &= left - 1u) { /* handed back during the walk: anew */
+            const unsigned l = (unsigned)__builtin_ctz(left);
+            kdrt__miss(p.best[l]);
+            p.best[l]->t = p.s[l].tmax;
+        }
+        alone |= p.alone;
+        for (lane = 0; lane < n; ++lane) {
+            const unsigned bit = 1u << lane;
+            int hit;
+            if (alone & bit)
+                hit = kdrt__walk_alone(tree, group[lane].cell, &p.s[lane], t0[lane], t1[lane],
+                                       p.best[lane], any_hit);
+            else if (any_hit) hit = (p.found & bit) != 0;
+            else {
+                hit = p.best[lane]->triangle != KDRT_INVALID_ID;
+                if (hit && (walked & bit)) p.best[lane]->cell = p.hit_cell[lane];
+            }
+            if (any_hit) occluded[i + lane] = (uint8_t)hit;
+            found += (uint32_t)hit;
+        }
+    }
+    return found;
+}
+#endif
+
+/* Whether query lets every hit of tree count, so that the plain walk answers it. */
+static int kdrt__query_is_plain(const kdrt_tree *tree, const kdrt_query *query)
+{
+    return !query || (!query->flags && !query->filter && query->mask && tree->masks_full);
+}
+
+/* rays[0 .. count) on tree under a plain query: into hits (nearest hit) or occluded (any_hit).
+   The scalar kernel walks them one by one. Returns how many hit. */
+static uint32_t kdrt__batch(const kdrt_tree *tree, const kdrt_ray *rays, uint32_t count,
+                            kdrt_hit *hits, uint8_t *occluded, int any_hit)
+{
+    uint32_t i, found = 0;
+#ifdef KDRT__AVX2
+    if (tree->simd) return kdrt__batch_avx2(tree, rays, count, hits, occluded, any_hit);
+#endif
+    for (i = 0; i < count; ++i) {
+        int hit = any_hit ? kdrt_occluded(tree, &rays[i]) : kdrt_intersect(tree, &rays[i], &hits[i]);
+        if (any_hit) occluded[i] = (uint8_t)hit;
+        found += (uint32_t)hit;
+    }
+    return found;
+}
 
 KDRT_API uint32_t kdrt_intersect_batch(const kdrt_tree *tree, const kdrt_ray *rays,
                                        uint32_t count, const kdrt_query *query, kdrt_hit *hits)
 {
     uint32_t i, found = 0;
     if (!hits) return 0;
+    if (tree && rays && kdrt__query_is_plain(tree, query))
+        return kdrt__batch(tree, rays, count, hits, NULL, 0);
     for (i = 0; i < count; ++i) {
         if (tree && rays) found += (uint32_t)kdrt_intersect_query(tree, &rays[i], query, &hits[i]);
         else kdrt__miss(&hits[i]);
@@ -4025,6 +4572,8 @@ KDRT_API uint32_t kdrt_occluded_batch(const kdrt_tree *tree, const kdrt_ray *ray
 {
     uint32_t i, found = 0;
     if (!occluded) return 0;
+    if (tree && rays && kdrt__query_is_plain(tree, query))
+        return kdrt__batch(tree, rays, count, NULL, occluded, 1);
     for (i = 0; i < count; ++i) {
         occluded[i] = (uint8_t)(tree && rays && kdrt_occluded_query(tree, &rays[i], query));
         found += occluded[i];
