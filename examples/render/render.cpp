@@ -1,6 +1,7 @@
 // kdrt-render's tracer: a pinhole camera, Phong direct lighting with hard or soft shadows,
 // mirrors, glass through kdrt's nested-media stack, the meshes in one kdrt scene (a mesh geometry
-// each, its ID the mesh's index), tiles on threads.
+// each, its ID the mesh's index), tiles on threads. A Phong hit's shadow rays are traced
+// together, a kdrt_scene_occluded_batch call per light.
 //
 // Geometry is double precision except where kdrt works in floats: mesh hits, the optics functions
 // (kdrt_reflect, kdrt_refract, kdrt_fresnel_dielectric) and every secondary ray's origin, which
@@ -58,6 +59,28 @@ struct Hit {
     Vec3 shading_normal;     // interpolated on meshes when enabled, else the geometric one
     double u = 0, v = 0;     // texture coordinates
 };
+
+// One point on a light, seen from a Phong hit, and whether it lights the hit.
+struct LightSample {
+    Vec3 l;                  // unit, from the hit towards the point
+    double n_dot_l = 0;      // with the shading normal facing the viewer
+    bool lit = false;        // n_dot_l > 0 and, when a shadow ray is cast, nothing in between
+    bool cast = false;       // a shadow ray is cast: n_dot_l > 0 and SHADOW_RAYS > 0
+    Ray from;                // the shadow ray's start (spawn's), when cast
+    Vec3 target;             // the point, when cast
+};
+
+// Each thread's buffers for the batches, kept from call to call so that tracing allocates
+// nothing once they have grown. radiance() holds `samples` from its hits' light samples to
+// their Phong sums; no other radiance() runs on the thread in between (a mirror's or glass's
+// path is traced on before).
+struct Scratch {
+    std::vector<LightSample> samples;
+    std::vector<kdrt_ray> rays;        // occluded()'s shadow rays into the meshes
+    std::vector<uint32_t> which;       // the sample each of them is
+    std::vector<uint8_t> blocked;      // and its answer
+};
+thread_local Scratch t_scratch;
 
 Vec3 to_vec(const float f[3]) { return {f[0], f[1], f[2]}; }
 void to_float(Vec3 v, float f[3]) { f[0] = float(v.x), f[1] = float(v.y), f[2] = float(v.z); }
@@ -186,11 +209,13 @@ struct Renderer::Impl {
 
     // The nearest sphere, quad, mesh or light the ray meets (lights are seen by every traced ray).
     bool intersect(const Ray &ray, Hit &hit) const;
-    bool occluded(const Ray &from, Vec3 target) const;
+    void occluded(LightSample *samples, size_t count) const;
     uint32_t cell_of(Vec3 point) const;
     Ray spawn(const Hit &hit, Vec3 dir) const;
     Vec3 texture(int texture_index, double u, double v) const;
-    Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, Rng &rng) const;
+    void light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample *out, size_t stride) const;
+    Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, const LightSample *samples,
+               size_t stride) const;
     Vec3 radiance(const Ray &ray, uint32_t bounces_left, const kdrt_media_stack &media, Rng &rng) const;
     // One camera ray's colour: through the pixel's centre, or jittered over the pixel.
     Vec3 sample(const View &view, uint32_t x, uint32_t y, bool jitter, Rng &rng) const;
@@ -302,29 +327,50 @@ uint32_t Renderer::Impl::cell_of(Vec3 point) const
     return world ? kdrt_scene_locate(world, p) : 0u;
 }
 
-// A shadow ray from `from`'s origin (and start cell) to target: blocked by any sphere, quad or
-// mesh between (lights are not occluders; glass casts a full shadow, as in the original).
-bool Renderer::Impl::occluded(const Ray &from, Vec3 target) const
+// The shadow rays of samples[0 .. count) that are cast, each from its hit (its start cell too)
+// to its point: blocked by any sphere, quad or mesh between (lights are not occluders; glass
+// casts a full shadow, as in the original), the meshes' part in one batch call for them all.
+void Renderer::Impl::occluded(LightSample *samples, size_t count) const
 {
-    const Vec3 origin = from.origin;
-    ++t_rays;
-    const Vec3 d = target - origin;
-    const double dist = length(d);
-    if (!(dist > 0)) return false;
-    const Ray ray{origin, (1.0 / dist) * d};
-    for (const Sphere &sp : scene->spheres)
-        if (hit_sphere(sp.center, sp.radius, ray, dist) < dist) return true;
-    double s, t;
-    for (const Quad &q : scene->quads)
-        if (hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, dist, s, t) < dist) return true;
-    if (!world) return false;
-    kdrt_ray kray{};
-    to_float(origin, kray.org);
-    to_float(d, kray.dir);  // target at t = 1 (kdrt_spawn_ray's rule for shadow rays)
-    kray.tmin = 0;
-    kray.tmax = 1;
-    kray.cell = from.cell;
-    return kdrt_scene_occluded(world, &kray, nullptr) != 0;
+    std::vector<kdrt_ray> &krays = t_scratch.rays;
+    std::vector<uint32_t> &which = t_scratch.which;
+    krays.clear(), which.clear();
+    const auto blocked_by_shapes = [this](const Ray &ray, double dist) {
+        for (const Sphere &sp : scene->spheres)
+            if (hit_sphere(sp.center, sp.radius, ray, dist) < dist) return true;
+        double s, t;
+        for (const Quad &q : scene->quads)
+            if (hit_parallelogram(q.corner, q.edge_u, q.edge_v, ray, dist, s, t) < dist) return true;
+        return false;
+    };
+    for (size_t i = 0; i < count; ++i) {
+        LightSample &sample = samples[i];
+        if (!sample.cast) continue;
+        ++t_rays;
+        const Vec3 origin = sample.from.origin;
+        const Vec3 d = sample.target - origin;
+        const double dist = length(d);
+        if (!(dist > 0)) continue;
+        if (blocked_by_shapes(Ray{origin, (1.0 / dist) * d}, dist)) {
+            sample.lit = false;
+            continue;
+        }
+        if (!world) continue;
+        kdrt_ray kray{};
+        to_float(origin, kray.org);
+        to_float(d, kray.dir);  // target at t = 1 (kdrt_spawn_ray's rule for shadow rays)
+        kray.tmin = 0;
+        kray.tmax = 1;
+        kray.cell = sample.from.cell;
+        krays.push_back(kray);
+        which.push_back(uint32_t(i));
+    }
+    if (krays.empty()) return;
+    std::vector<uint8_t> &blocked = t_scratch.blocked;
+    blocked.resize(krays.size());
+    kdrt_scene_occluded_batch(world, krays.data(), uint32_t(krays.size()), nullptr, blocked.data());
+    for (size_t j = 0; j < krays.size(); ++j)
+        if (blocked[j]) samples[which[j]].lit = false;
 }
 
 // The next ray from a hit: its origin moved off the surface towards the side dir leaves on.
@@ -366,16 +412,16 @@ Vec3 Renderer::Impl::texture(int texture_index, double u, double v) const
     return (cell & 1) ? t.checker_b : t.checker_a;
 }
 
-// Phong at a hit seen along view_dir, with n the shading normal facing the viewer.
-Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, Rng &rng) const
+// The points on the lights that may light a Phong hit whose shading normal, facing the viewer,
+// is n: SHADOW_RAYS of them a light (one at least), light L's k-th at out[L * stride + k], each
+// with its shadow ray when one is to be cast. The hit's random numbers are drawn here, the same
+// whatever the shadow rays find.
+void Renderer::Impl::light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample *out, size_t stride) const
 {
     const Settings &st = scene->settings;
-    const Vec3 tex = st.enable_textures ? texture(m.texture, hit.u, hit.v) : Vec3{1, 1, 1};
-    Vec3 color = m.ambient;
-    const Vec3 to_eye = -1.0 * view_dir;
     const uint32_t samples = std::max(1u, st.shadow_rays);
-    for (const Light &light : scene->lights) {
-        Vec3 sum;
+    for (size_t i = 0; i < scene->lights.size(); ++i) {
+        const Light &light = scene->lights[i];
         for (uint32_t k = 0; k < samples; ++k) {
             Vec3 q;
             if (light.kind == LightKind::sphere) {
@@ -392,22 +438,40 @@ Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec
                 const double s = st.shadow_rays > 1 ? rng.uniform() : 0.5, t = st.shadow_rays > 1 ? rng.uniform() : 0.5;
                 q = light.corner + s * light.edge_u + t * light.edge_v;
             }
-            const Vec3 l = normalize(q - hit.point);
-            const double n_dot_l = dot(n, l);
-            if (n_dot_l <= 0) continue;
-            if (st.shadow_rays > 0) {
-                const Ray shadow = spawn(hit, l);
-                if (occluded(shadow, q)) continue;
-            }
-            Vec3 c = n_dot_l * (m.diffuse * tex);
+            LightSample &sample = out[i * stride + k];
+            sample.l = normalize(q - hit.point);
+            sample.n_dot_l = dot(n, sample.l);
+            sample.lit = !(sample.n_dot_l <= 0);
+            sample.cast = sample.lit && st.shadow_rays > 0;
+            if (sample.cast) sample.from = spawn(hit, sample.l), sample.target = q;
+        }
+    }
+}
+
+// Phong at a hit seen along view_dir, with n the shading normal facing the viewer, lit by its
+// light samples as light_samples() laid them out and occluded() found them.
+Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, const LightSample *samples,
+                           size_t stride) const
+{
+    const Settings &st = scene->settings;
+    const Vec3 tex = st.enable_textures ? texture(m.texture, hit.u, hit.v) : Vec3{1, 1, 1};
+    Vec3 color = m.ambient;
+    const Vec3 to_eye = -1.0 * view_dir;
+    const uint32_t count = std::max(1u, st.shadow_rays);
+    for (size_t i = 0; i < scene->lights.size(); ++i) {
+        Vec3 sum;
+        for (uint32_t k = 0; k < count; ++k) {
+            const LightSample &sample = samples[i * stride + k];
+            if (!sample.lit) continue;
+            Vec3 c = sample.n_dot_l * (m.diffuse * tex);
             if (st.phong) {
-                const Vec3 r = 2 * n_dot_l * n - l;  // l mirrored about n
+                const Vec3 r = 2 * sample.n_dot_l * n - sample.l;  // l mirrored about n
                 const double r_dot_v = dot(r, to_eye);
                 if (r_dot_v > 0) c = c + std::pow(r_dot_v, m.shininess) * m.specular;
             }
             sum = sum + c;
         }
-        color = color + (1.0 / samples) * (light.color * sum);
+        color = color + (1.0 / count) * (scene->lights[i].color * sum);
     }
     return color;
 }
@@ -480,7 +544,13 @@ Vec3 Renderer::Impl::radiance(const Ray &ray, uint32_t bounces_left, const kdrt_
         const bool back = dot(hit.normal, ray.dir) > 0;
         if (back) n = -1.0 * n;
         if (dot(n, ray.dir) > 0) n = back ? -1.0 * hit.normal : hit.normal;  // interpolation went past the silhouette
-        return phong(*m, hit, ray.dir, n, rng);
+        // The light samples first, then their shadow rays, a batch a light, then the sum.
+        const size_t per_light = std::max(1u, st.shadow_rays);
+        std::vector<LightSample> &samples = t_scratch.samples;
+        samples.resize(per_light * sc.lights.size());
+        light_samples(hit, n, rng, samples.data(), per_light);
+        for (size_t light = 0; light < sc.lights.size(); ++light) occluded(samples.data() + light * per_light, per_light);
+        return phong(*m, hit, ray.dir, n, samples.data(), per_light);
     }
     // Every mirror or glass surface met takes a bounce; out of bounces the path ends, black.
     if (bounces_left == 0) return {0, 0, 0};
