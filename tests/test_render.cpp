@@ -25,6 +25,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -126,6 +127,57 @@ TEST_CASE("render: every preset renders the same image on 1 and 3 threads, and n
         const auto range = std::minmax_element(one.rgb.begin(), one.rgb.end());
         CHECK(*range.second - *range.first > 0.2f);
         for (float v : one.rgb) REQUIRE(std::isfinite(v));
+    }
+}
+
+TEST_CASE("render: 4x4 tiles of batched rays give one-pixel tiles' image, bit for bit, edge tiles cut short included", "[render][tiles]")
+{
+    // Sizes that cut the last column and row of tiles short (37x23, 6x7), and one smaller than a
+    // tile (3x2); two lights, so that each light's shadow rays are their own run in the batch;
+    // soft shadows, glass, a mirror and the bunny (PICTURE), or two meshes (BENCHMARKS).
+    for (const char *name : {"PICTURE", "BENCHMARKS", "PHASE_2_SOFT_SHADOWS"}) {
+        INFO("preset " << name);
+        kr::Scene scene;
+        std::string error;
+        REQUIRE(kr::make_preset(name, scene, error));
+        INFO(error);
+        REQUIRE(kr::load_meshes(scene, error));
+        scene.settings.nsamples = 2;
+        kr::Light second;
+        second.center = {0.3, 1.7, 0.6}, second.radius = 0.05, second.color = {0.3, 0.25, 0.2};
+        scene.lights.push_back(second);
+        kr::Renderer renderer;
+        REQUIRE(renderer.prepare(scene, 2, error));
+        for (const auto &size : {std::make_pair(37u, 23u), std::make_pair(6u, 7u), std::make_pair(3u, 2u)}) {
+            INFO(size.first << "x" << size.second);
+            kr::RenderOptions options;
+            options.width = size.first, options.height = size.second, options.threads = 2, options.seed = 3;
+            kr::Image tiled, single;
+            REQUIRE(renderer.render(options, tiled, error));
+            options.one_pixel_tiles = true, options.threads = 1;
+            REQUIRE(renderer.render(options, single, error));
+            REQUIRE(tiled.rgb.size() == single.rgb.size());
+            for (size_t i = 0; i < tiled.rgb.size(); ++i)
+                if (std::memcmp(&tiled.rgb[i], &single.rgb[i], sizeof(float)) != 0) {
+                    FAIL_CHECK("pixel (" << i / 3 % size.first << ", " << i / 3 / size.first << "): " << tiled.rgb[i]
+                                         << " tiled, " << single.rgb[i] << " a pixel at a time");
+                    break;
+                }
+        }
+        // kdrt-view's frames (accumulate) go through the same tiles.
+        common::ThreadScheduler scheduler(2);
+        kr::RenderOptions options;
+        options.width = 37, options.height = 23;
+        kr::Accumulation tiled, single;
+        for (int frame = 0; frame < 2; ++frame) {
+            REQUIRE(renderer.accumulate(options, tiled, scheduler, error));
+            options.one_pixel_tiles = true;
+            REQUIRE(renderer.accumulate(options, single, scheduler, error));
+            options.one_pixel_tiles = false;
+            CHECK(tiled.sum == single.sum);
+            CHECK(tiled.stream == single.stream);
+            CHECK(tiled.rays == single.rays);
+        }
     }
 }
 
