@@ -130,6 +130,30 @@ TEST_CASE("render: every preset renders the same image on 1 and 3 threads, and n
     }
 }
 
+namespace {
+
+// render() in 4x4 tiles against one-pixel tiles, bit for bit.
+void check_tiles(const kr::Renderer &renderer, uint32_t w, uint32_t h)
+{
+    INFO(w << "x" << h);
+    kr::RenderOptions options;
+    options.width = w, options.height = h, options.threads = 2, options.seed = 3;
+    kr::Image tiled, single;
+    std::string error;
+    REQUIRE(renderer.render(options, tiled, error));
+    options.one_pixel_tiles = true, options.threads = 1;
+    REQUIRE(renderer.render(options, single, error));
+    REQUIRE(tiled.rgb.size() == single.rgb.size());
+    for (size_t i = 0; i < tiled.rgb.size(); ++i)
+        if (std::memcmp(&tiled.rgb[i], &single.rgb[i], sizeof(float)) != 0) {
+            FAIL_CHECK("pixel (" << i / 3 % w << ", " << i / 3 / w << "): " << tiled.rgb[i] << " tiled, "
+                                 << single.rgb[i] << " a pixel at a time");
+            return;
+        }
+}
+
+}  // namespace
+
 TEST_CASE("render: 4x4 tiles of batched rays give one-pixel tiles' image, bit for bit, edge tiles cut short included", "[render][tiles]")
 {
     // Sizes that cut the last column and row of tiles short (37x23, 6x7), and one smaller than a
@@ -148,22 +172,9 @@ TEST_CASE("render: 4x4 tiles of batched rays give one-pixel tiles' image, bit fo
         scene.lights.push_back(second);
         kr::Renderer renderer;
         REQUIRE(renderer.prepare(scene, 2, error));
-        for (const auto &size : {std::make_pair(37u, 23u), std::make_pair(6u, 7u), std::make_pair(3u, 2u)}) {
-            INFO(size.first << "x" << size.second);
-            kr::RenderOptions options;
-            options.width = size.first, options.height = size.second, options.threads = 2, options.seed = 3;
-            kr::Image tiled, single;
-            REQUIRE(renderer.render(options, tiled, error));
-            options.one_pixel_tiles = true, options.threads = 1;
-            REQUIRE(renderer.render(options, single, error));
-            REQUIRE(tiled.rgb.size() == single.rgb.size());
-            for (size_t i = 0; i < tiled.rgb.size(); ++i)
-                if (std::memcmp(&tiled.rgb[i], &single.rgb[i], sizeof(float)) != 0) {
-                    FAIL_CHECK("pixel (" << i / 3 % size.first << ", " << i / 3 / size.first << "): " << tiled.rgb[i]
-                                         << " tiled, " << single.rgb[i] << " a pixel at a time");
-                    break;
-                }
-        }
+        check_tiles(renderer, 37, 23);
+        check_tiles(renderer, 6, 7);
+        check_tiles(renderer, 3, 2);
         // kdrt-view's frames (accumulate) go through the same tiles.
         common::ThreadScheduler scheduler(2);
         kr::RenderOptions options;
@@ -179,6 +190,14 @@ TEST_CASE("render: 4x4 tiles of batched rays give one-pixel tiles' image, bit fo
             CHECK(tiled.rays == single.rays);
         }
     }
+    // No light at all: Phong hits with no light samples, ambient only.
+    kr::Scene dark;
+    std::string error;
+    REQUIRE(kr::make_preset("PHASE_2_HARD_SHADOWS", dark, error));
+    dark.lights.clear();
+    kr::Renderer renderer;
+    REQUIRE(renderer.prepare(dark, 1, error));
+    check_tiles(renderer, 37, 23);
 }
 
 TEST_CASE("render: the seed changes the jittered samples, and nothing else does", "[render]")

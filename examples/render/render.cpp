@@ -243,8 +243,8 @@ struct Renderer::Impl {
     uint32_t cell_of(Vec3 point) const;
     Ray spawn(const Hit &hit, Vec3 dir) const;
     Vec3 texture(int texture_index, double u, double v) const;
-    void light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample *out, size_t stride) const;
-    Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, const LightSample *samples,
+    void light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample *samples, size_t first, size_t stride) const;
+    Vec3 phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, const LightSample *samples, size_t first,
                size_t stride) const;
 
     // What a hit shows: a colour, or a Phong surface (`phong` its material, n its shading normal
@@ -483,16 +483,17 @@ Vec3 Renderer::Impl::texture(int texture_index, double u, double v) const
 }
 
 // The points on the lights that may light a Phong hit whose shading normal, facing the viewer,
-// is n: SHADOW_RAYS of them a light (one at least), light L's k-th at out[L * stride + k], each
-// with its shadow ray when one is to be cast. The hit's random numbers are drawn here, the same
-// whatever the shadow rays find.
-void Renderer::Impl::light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample *out, size_t stride) const
+// is n: SHADOW_RAYS of them a light (one at least), light L's k-th at samples[first + L * stride
+// + k], each with its shadow ray when one is to be cast. The hit's random numbers are drawn here,
+// the same whatever the shadow rays find.
+void Renderer::Impl::light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample *samples, size_t first,
+                                   size_t stride) const
 {
     const Settings &st = scene->settings;
-    const uint32_t samples = std::max(1u, st.shadow_rays);
+    const uint32_t per_light = std::max(1u, st.shadow_rays);
     for (size_t i = 0; i < scene->lights.size(); ++i) {
         const Light &light = scene->lights[i];
-        for (uint32_t k = 0; k < samples; ++k) {
+        for (uint32_t k = 0; k < per_light; ++k) {
             Vec3 q;
             if (light.kind == LightKind::sphere) {
                 q = light.center;
@@ -508,7 +509,7 @@ void Renderer::Impl::light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample
                 const double s = st.shadow_rays > 1 ? rng.uniform() : 0.5, t = st.shadow_rays > 1 ? rng.uniform() : 0.5;
                 q = light.corner + s * light.edge_u + t * light.edge_v;
             }
-            LightSample &sample = out[i * stride + k];
+            LightSample &sample = samples[first + i * stride + k];
             sample.l = normalize(q - hit.point);
             sample.n_dot_l = dot(n, sample.l);
             sample.lit = !(sample.n_dot_l <= 0);
@@ -521,7 +522,7 @@ void Renderer::Impl::light_samples(const Hit &hit, Vec3 n, Rng &rng, LightSample
 // Phong at a hit seen along view_dir, with n the shading normal facing the viewer, lit by its
 // light samples as light_samples() laid them out and occluded() found them.
 Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec3 n, const LightSample *samples,
-                           size_t stride) const
+                           size_t first, size_t stride) const
 {
     const Settings &st = scene->settings;
     const Vec3 tex = st.enable_textures ? texture(m.texture, hit.u, hit.v) : Vec3{1, 1, 1};
@@ -531,7 +532,7 @@ Vec3 Renderer::Impl::phong(const Material &m, const Hit &hit, Vec3 view_dir, Vec
     for (size_t i = 0; i < scene->lights.size(); ++i) {
         Vec3 sum;
         for (uint32_t k = 0; k < count; ++k) {
-            const LightSample &sample = samples[i * stride + k];
+            const LightSample &sample = samples[first + i * stride + k];
             if (!sample.lit) continue;
             Vec3 c = sample.n_dot_l * (m.diffuse * tex);
             if (st.phong) {
@@ -665,19 +666,20 @@ void Renderer::Impl::radiance(const Ray *rays, uint32_t n, uint32_t bounces_left
     }
     if (lit_count == 0) return;
     // The Phong hits' light samples, light by light: light L's k-th sample of Phong hit j is
-    // samples[L * stride + j * per_light + k], so each light's shadow rays from neighbouring
-    // pixels lie side by side, traced in one batch.
+    // samples[j * per_light + L * stride + k], so each light's shadow rays from neighbouring
+    // pixels lie side by side, traced in one batch. (No lights: no samples, and data() may be
+    // null, so offsets are indices, not pointers.)
     const size_t per_light = std::max(1u, scene->settings.shadow_rays), stride = lit_count * per_light;
     std::vector<LightSample> &samples = t_scratch.samples;
     samples.resize(stride * scene->lights.size());
     for (uint32_t j = 0; j < lit_count; ++j) {
         const uint32_t r = lit[j];
-        light_samples(hits[r], shades[r].n, *rngs[r], samples.data() + j * per_light, stride);
+        light_samples(hits[r], shades[r].n, *rngs[r], samples.data(), j * per_light, stride);
     }
     for (size_t light = 0; light < scene->lights.size(); ++light) occluded(samples.data() + light * stride, stride);
     for (uint32_t j = 0; j < lit_count; ++j) {
         const uint32_t r = lit[j];
-        colors[r] = phong(*shades[r].phong, hits[r], rays[r].dir, shades[r].n, samples.data() + j * per_light, stride);
+        colors[r] = phong(*shades[r].phong, hits[r], rays[r].dir, shades[r].n, samples.data(), j * per_light, stride);
     }
 }
 
