@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <numeric>
 #include <utility>
@@ -154,6 +155,22 @@ std::vector<uint32_t> leaf_sizes_for(const std::vector<uint32_t> &sizes, uint32_
     return kept;
 }
 
+const char *call_name(Call call) {
+    switch (call) {
+    case Call::batch: return "batch";
+    case Call::packet8: return "packet8";
+    case Call::packet16: return "packet16";
+    default: return "single";
+    }
+}
+
+std::vector<Call> kdrt_calls(const Options &opt) {
+    std::vector<Call> calls;
+    for (Call call : opt.calls)
+        if (call == Call::single || call == Call::batch) calls.push_back(call);
+    return calls;
+}
+
 const char *intersector_name(kdrt_intersector intersector) {
     return intersector == KDRT_INTERSECTOR_FAST ? "fast" : "watertight";
 }
@@ -214,6 +231,22 @@ std::string usage() {
            "                      each tree traced with each in turn, named in the Start column\n"
            "                      (default: cell,root for diffuse and shadow rays, root for the\n"
            "                      others, whose origin lies outside the tree)\n"
+           "  --batch LIST        how the rays are handed over, comma-separated, a row each, named\n"
+           "                      in the Call column: single (kdrt_intersect, rtcIntersect1: the\n"
+           "                      default), batch (kdrt_intersect_batch and Embree's rtcIntersect1M\n"
+           "                      with the COHERENT flag, on chunks of --batch-size rays), packet8,\n"
+           "                      packet16 (Embree's rtcIntersect8, rtcIntersect16 on consecutive\n"
+           "                      rays, every lane valid, COHERENT; no kdrt rows). Shadow rays: the\n"
+           "                      occluded forms. Each kdrt batch answer must be the single call's,\n"
+           "                      bit for bit, or the run fails. With --batch the rays come in\n"
+           "                      tiles (--tile)\n"
+           "  --batch-size N      rays per batch call, each chunk consecutive rays of the order\n"
+           "                      (default 4096; the last chunk holds the rest)\n"
+           "  --tile WxH          the rays' order: tiles of W x H pixels, tiles row by row, pixels\n"
+           "                      row by row in each, diffuse and shadow rays in their primary\n"
+           "                      rays' order (default with --batch: 4x2, 8 rays; 1x1 is the pixel\n"
+           "                      order, the default without --batch)\n"
+           "  --shuffle           the rays in a shuffled order (seeded): incoherent batches\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "                      | shadow (from the primary hits to a point light above the\n"
@@ -257,7 +290,8 @@ std::string usage() {
            "kdrt_spawn_ray starts from the sample's hits (SpawnedRays: reflected, through and two\n"
            "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
            "for the same rays started exactly at the hit point, with no offset.\n"
-           "--sweep, --leaf-sizes, --rays, --compare, --sah-costs, --quality and --query do not apply.\n"
+           "--sweep, --leaf-sizes, --rays, --compare, --sah-costs, --quality, --query, --start,\n"
+           "--batch, --batch-size, --tile and --shuffle do not apply.\n"
            "\n"
            "--scene merged,field measures kdrt_scene against one tree over the same triangles,\n"
            "with primary and diffuse rays (the frame's, made on the one tree) through both:\n"
@@ -286,6 +320,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     std::string not_scene_option;  // the last option that --scene has no use for
     std::string field_option;      // the last option that only --scene field takes
     bool hard_rays_given = false, repeat_given = false, size_given = false;
+    bool batch_given = false, batch_size_given = false, tile_given = false;
     for (int i = 1; i < argc; ++i) {
         std::string arg = argv[i];
         auto value = [&](std::string &v) {
@@ -298,12 +333,13 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         };
         std::string v;
         unsigned long long n = 0;
+        const bool ray_order_option = arg == "--batch" || arg == "--batch-size" || arg == "--tile" || arg == "--shuffle";
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
-            arg == "--quality" || arg == "--query" || arg == "--start" || arg == "--sweep")
+            arg == "--quality" || arg == "--query" || arg == "--start" || arg == "--sweep" || ray_order_option)
             csv_only_option = arg;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--sah-costs" || arg == "--quality" ||
             arg == "--query" || arg == "--start" || arg == "--builder" || arg == "--intersector" || arg == "--subdivide" ||
-            arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep")
+            arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep" || ray_order_option)
             not_scene_option = arg;
         if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
@@ -392,6 +428,34 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
                 error = "--start wants cell, root or both separated by a comma, got '" + v + "'";
                 return false;
             }
+        } else if (arg == "--batch") {
+            if (!value(v)) return false;
+            if (!parse_choices<Call>(v,
+                                     {{"single", Call::single},
+                                      {"batch", Call::batch},
+                                      {"packet8", Call::packet8},
+                                      {"packet16", Call::packet16}},
+                                     out.calls)) {
+                error = "--batch wants single, batch, packet8 or packet16, separated by commas, got '" + v + "'";
+                return false;
+            }
+            batch_given = true;
+        } else if (arg == "--batch-size") {
+            if (!value(v)) return false;
+            if (!common::parse_count(v, 1u << 30, out.batch_size) || out.batch_size == 0) {
+                error = "--batch-size wants a whole number of rays from 1, got '" + v + "'";
+                return false;
+            }
+            batch_size_given = true;
+        } else if (arg == "--tile") {
+            if (!value(v)) return false;
+            if (!common::parse_size(v, 256, out.tile_width, out.tile_height)) {
+                error = "--tile wants WxH with 1 <= W, H <= 256 (pixels), got '" + v + "'";
+                return false;
+            }
+            tile_given = true;
+        } else if (arg == "--shuffle") {
+            out.shuffle = true;
         } else if (arg == "--scene") {
             if (!value(v)) return false;
             if (!parse_choices<std::string>(v, {{"merged", "merged"}, {"field", "field"}}, out.scenes)) {
@@ -501,6 +565,11 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         error = "--quality applies only to the SAH builder: add --builder sah (or median,sah)";
         return false;
     }
+    if (batch_size_given && std::find(out.calls.begin(), out.calls.end(), Call::batch) == out.calls.end()) {
+        error = "--batch-size applies only to the batch calls: add --batch batch (or single,batch)";
+        return false;
+    }
+    if (batch_given && !tile_given) out.tile_width = 4, out.tile_height = 2;  // 8 rays, a packet's worth
     if (out.accuracy && !repeat_given) out.repeat = 3;
     if (out.accuracy && !size_given) out.width = out.height = 400;  // 30 frames: a few minutes in all
     if (!out.accuracy && hard_rays_given) {
@@ -545,8 +614,11 @@ Scene make_scene(const common::Mesh &mesh, const std::string &name) {
 }
 
 std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width, unsigned height,
-                                const kdrt_tree *tree, uint32_t seed) {
+                                const kdrt_tree *tree, uint32_t seed, std::vector<uint32_t> *pixels) {
     std::vector<kdrt_ray> rays;
+    std::vector<uint32_t> ignored;
+    std::vector<uint32_t> &pixel_of = pixels ? *pixels : ignored;
+    pixel_of.clear();
     if (kind == RayKind::random) {
         // Uniform rays through the scene's box: from a point on its bounding sphere to a point inside.
         kdrt_aabb box = kdrt_tree_bounds(tree);
@@ -564,6 +636,8 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
             }
             r.tmin = 0, r.tmax = INFINITY;
         }
+        pixel_of.resize(rays.size());
+        std::iota(pixel_of.begin(), pixel_of.end(), 0u);
         return rays;
     }
 
@@ -579,13 +653,18 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
             r.tmin = 0, r.tmax = INFINITY;
             rays.push_back(r);
         }
-    if (kind == RayKind::primary) return rays;
+    if (kind == RayKind::primary) {
+        pixel_of.resize(rays.size());
+        std::iota(pixel_of.begin(), pixel_of.end(), 0u);
+        return rays;
+    }
 
     if (kind == RayKind::shadow) {
         // From every primary hit towards the light, leaving the surface through kdrt_spawn_ray(),
         // then aimed from the origin it chose so that the light is at t = 1.
         std::vector<kdrt_ray> shadow;
         for (const kdrt_ray &r : rays) {
+            const uint32_t pixel = uint32_t(&r - rays.data());
             kdrt_hit h;
             float point[3], dir[3];
             kdrt_ray s;
@@ -595,6 +674,7 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
             for (int a = 0; a < 3; ++a) s.dir[a] = kShadowLight[a] - s.org[a];
             s.tmin = 0, s.tmax = 1;
             shadow.push_back(s);
+            pixel_of.push_back(pixel);
         }
         return shadow;
     }
@@ -604,6 +684,7 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
     std::vector<kdrt_ray> bounces;
     common::Rng rng = seeded(seed);
     for (const kdrt_ray &r : rays) {
+        const uint32_t pixel = uint32_t(&r - rays.data());
         kdrt_hit h;
         float normal[3];
         if (!kdrt_intersect(tree, &r, &h) || !kdrt_hit_surface(tree, &h, nullptr, normal)) continue;
@@ -617,9 +698,80 @@ std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width
         float dir[3];
         for (int a = 0; a < 3; ++a) dir[a] = float(radial * std::cos(phi) * t1[a] + radial * std::sin(phi) * t2[a] + up * n[a]);
         kdrt_ray b;
-        if (kdrt_spawn_ray(tree, &h, dir, &b)) bounces.push_back(b);
+        if (kdrt_spawn_ray(tree, &h, dir, &b)) bounces.push_back(b), pixel_of.push_back(pixel);
     }
     return bounces;
+}
+
+std::vector<size_t> ray_order(const std::vector<uint32_t> &pixels, unsigned width, unsigned tile_width,
+                              unsigned tile_height, bool shuffle, uint32_t seed) {
+    std::vector<size_t> order(pixels.size());
+    std::iota(order.begin(), order.end(), size_t(0));
+    if (shuffle) {
+        common::Rng rng(seed);  // a stream of its own: the ray sets and samples draw from seeded()
+        for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[size_t(rng.uniform() * double(i))]);
+        return order;
+    }
+    // A pixel's place: its tile's (tiles row by row), then its own within the tile (row by row).
+    const uint64_t tiles_across = (uint64_t(width) + tile_width - 1) / tile_width;
+    const auto place = [&](uint32_t pixel) {
+        const uint64_t x = pixel % width, y = pixel / width;
+        const uint64_t tile = (y / tile_height) * tiles_across + x / tile_width;
+        return (tile * tile_height + y % tile_height) * tile_width + x % tile_width;
+    };
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return place(pixels[a]) < place(pixels[b]); });
+    return order;
+}
+
+std::string frame_rays(const Options &opt, RayKind kind) {
+    const char *names[] = {"primary", "diffuse", "random", "shadow"};
+    std::string text = std::to_string(opt.width) + "x" + std::to_string(opt.height) + " " + names[int(kind)] + " rays";
+    if (opt.shuffle) return text + ", shuffled";
+    if (opt.tile_width * opt.tile_height > 1)
+        text += " in " + std::to_string(opt.tile_width) + "x" + std::to_string(opt.tile_height) + " tiles";
+    return text;
+}
+
+namespace {
+
+uint32_t bits_of(float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, sizeof u);
+    return u;
+}
+
+bool same_hit(const kdrt_hit &a, const kdrt_hit &b) {
+    return bits_of(a.t) == bits_of(b.t) && bits_of(a.u) == bits_of(b.u) && bits_of(a.v) == bits_of(b.v) &&
+           a.triangle == b.triangle && a.geometry == b.geometry && a.instance == b.instance && a.cell == b.cell;
+}
+
+}  // namespace
+
+size_t count_differing_hits(const std::vector<kdrt_hit> &a, const std::vector<kdrt_hit> &b, size_t &first) {
+    size_t differing = 0;
+    first = SIZE_MAX;
+    for (size_t i = 0; i < std::max(a.size(), b.size()); ++i)
+        if (i >= a.size() || i >= b.size() || !same_hit(a[i], b[i])) {
+            if (!differing++) first = i;
+        }
+    return differing;
+}
+
+size_t count_differing_occlusion(const std::vector<unsigned char> &a, const std::vector<unsigned char> &b, size_t &first) {
+    size_t differing = 0;
+    first = SIZE_MAX;
+    for (size_t i = 0; i < std::max(a.size(), b.size()); ++i)
+        if (i >= a.size() || i >= b.size() || a[i] != b[i]) {
+            if (!differing++) first = i;
+        }
+    return differing;
+}
+
+std::string describe_hit(const kdrt_hit &hit) {
+    char buf[192];
+    std::snprintf(buf, sizeof buf, "triangle %u t %a u %a v %a geometry %u instance %u cell %u", hit.triangle,
+                  double(hit.t), double(hit.u), double(hit.v), hit.geometry, hit.instance, hit.cell);
+    return buf;
 }
 
 int take_every_hit(void *, const kdrt_ray *, const kdrt_hit *) { return 1; }
@@ -674,7 +826,7 @@ std::vector<std::string> starts_for(const Options &opt) {
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
            "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality;"
-           "Query;Start";
+           "Query;Start;Call";
 }
 
 std::string csv_row(const Row &row) {
@@ -700,7 +852,7 @@ std::string csv_row(const Row &row) {
         line.append(buf, size_t(n));
     }
     return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads) + ";" + row.quality + ";" +
-           row.query + ";" + row.start;
+           row.query + ";" + row.start + ";" + row.call;
 }
 
 // ---- kdrt-bench --accuracy ----

@@ -15,6 +15,14 @@ namespace kb {
 
 enum class RayKind { primary, diffuse, random, shadow };
 
+// How the rays are handed to the tracer (--batch, the Call column): one call a ray
+// (kdrt_intersect, rtcIntersect1); batch calls over --batch-size consecutive rays at a time
+// (kdrt_intersect_batch, rtcIntersect1M with the COHERENT flag); or, Embree only, packets of 8 or
+// 16 consecutive rays (rtcIntersect8, rtcIntersect16), every lane valid.
+enum class Call { single, batch, packet8, packet16 };
+const char *call_name(Call call);  // "single", "batch", "packet8", "packet16"
+constexpr uint32_t kDefaultBatchSize = 4096;
+
 // The SAH builder's cost constants (kdrt_build_options.sah_*): traversal K_T, intersection K_I,
 // empty bonus EB.
 struct SahCosts {
@@ -40,6 +48,12 @@ struct Options {
     // --start: "cell" and/or "root", traced in turn; empty: starts_for()'s default
     std::vector<std::string> starts;
     RayKind rays = RayKind::primary;
+    std::vector<Call> calls{Call::single};  // --batch: each traced in turn, a row each
+    uint32_t batch_size = kDefaultBatchSize;  // --batch-size: rays per batch call
+    // The rays' order (ray_order()): tiles of tile_width x tile_height pixels, 1x1 being the
+    // pixel order; --tile, or 4x2 when --batch is given; --shuffle shuffles them (seeded).
+    unsigned tile_width = 1, tile_height = 1;
+    bool shuffle = false;
     std::string output;                // "" means stdout
     // --compare embree or none. Not given: Embree when this kdrt-bench has it (main decides, as
     // only it links Embree), none with --sweep; compare_chosen says which.
@@ -82,6 +96,9 @@ struct BuildVariant {
 };
 std::vector<BuildVariant> build_variants(const Options &opt);
 
+// opt.calls that kdrt has (single, batch), in order: the packets are Embree's alone.
+std::vector<Call> kdrt_calls(const Options &opt);
+
 // Where the traced rays start (--start): opt.starts, or "cell" and "root" for the rays that start
 // on the surface (diffuse, shadow) and "root" for the others.
 std::vector<std::string> starts_for(const Options &opt);
@@ -114,9 +131,28 @@ Scene make_scene(const common::Mesh &mesh, const std::string &name);
 
 // One ray per pixel centre (row-major), or the bounces or random rays built from them, or shadow
 // rays: from every primary hit to the point light kShadowLight, which lies above and in front of
-// the scene, over t in [0, 1] (the light at t = 1). tree is used for the primary hits.
+// the scene, over t in [0, 1] (the light at t = 1). tree is used for the primary hits. pixels,
+// unless NULL, gets each ray's pixel (y * width + x; a random ray's is its index).
 std::vector<kdrt_ray> make_rays(const Scene &scene, RayKind kind, unsigned width, unsigned height,
-                                const kdrt_tree *tree, uint32_t seed);
+                                const kdrt_tree *tree, uint32_t seed, std::vector<uint32_t> *pixels = nullptr);
+
+// The order to trace rays in, as a renderer hands them over: order[k] is the index (into pixels,
+// make_rays' list) of the k-th ray. The frame is cut into tiles of tile_width x tile_height
+// pixels, tiles row by row from the top left (those on the right and bottom edges cut short),
+// pixels row by row within a tile, so a ray spawned at a hit comes where its primary ray came;
+// 1x1 tiles give the pixel order. With shuffle, that order shuffled instead (seeded).
+std::vector<size_t> ray_order(const std::vector<uint32_t> &pixels, unsigned width, unsigned tile_width,
+                              unsigned tile_height, bool shuffle, uint32_t seed);
+// "800x800 primary rays", and " in 4x2 tiles" or ", shuffled" when the order is not the pixels'.
+std::string frame_rays(const Options &opt, RayKind kind);
+
+// Rays whose two answers differ in any field, bit for bit (t, u, v, triangle, geometry, instance,
+// cell; -0 is not 0): what a batch call must never give (kdrt.h, BATCHES). first: the first such
+// ray's index, or SIZE_MAX when none does.
+size_t count_differing_hits(const std::vector<kdrt_hit> &a, const std::vector<kdrt_hit> &b, size_t &first);
+size_t count_differing_occlusion(const std::vector<unsigned char> &a, const std::vector<unsigned char> &b, size_t &first);
+// "triangle 12 t 0x1.8p+0 u ... cell 7" (floats in hex, every bit shown), for the messages.
+std::string describe_hit(const kdrt_hit &hit);
 
 constexpr float kShadowLight[3] = {1.5f, 3.0f, 2.5f};
 
@@ -157,6 +193,7 @@ struct Row {
     std::string quality;               // the SAH build's quality, or Embree's ("low", "medium")
     std::string query;                 // Query column: "plain" or "filter"; empty on Embree rows
     std::string start;                 // Start column: "cell" or "root"; empty on Embree rows
+    std::string call = "single";       // Call column: call_name() of how the rays were handed over
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

@@ -4,6 +4,8 @@
 
 #ifdef KDRT_BENCH_HAVE_EMBREE
 #include <embree3/rtcore.h>
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #endif
 
@@ -15,7 +17,7 @@ const char *peer_quality_name(PeerQuality quality) { return quality == PeerQuali
 
 bool embree_available() { return false; }
 
-bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, unsigned, bool, PeerQuality, unsigned, PeerRun &,
+bool embree_run(const common::Mesh &, const std::vector<kdrt_ray> &, const Options &, PeerQuality, std::vector<PeerRun> &,
                 std::string &error) {
     error = "this kdrt-bench was built without Embree (install libembree-dev and configure again)";
     return false;
@@ -51,15 +53,17 @@ static RTCRay rtc_ray(const kdrt_ray &r) {
     return ray;
 }
 
-// rtcIntersect1's answer for the ray, in kdrt's terms (see PeerScene::trace).
-static kdrt_hit intersect(RTCScene scene, const kdrt_ray &ray) {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
+// The ray with no hit yet, as rtcIntersect* want it.
+static RTCRayHit rtc_ray_hit(const kdrt_ray &ray) {
     RTCRayHit rh;
     rh.ray = rtc_ray(ray);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene, &context, &rh);
+    return rh;
+}
+
+// Embree's answer in kdrt's terms (see PeerScene::trace).
+static kdrt_hit kdrt_answer(const RTCRayHit &rh) {
     kdrt_hit h;
     const bool hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
     const bool instanced = hit && rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID;
@@ -67,7 +71,143 @@ static kdrt_hit intersect(RTCScene scene, const kdrt_ray &ray) {
     h.t = rh.ray.tfar, h.u = rh.hit.u, h.v = rh.hit.v;
     h.geometry = instanced ? rh.hit.instID[0] : hit ? rh.hit.geomID : 0;
     h.instance = instanced ? rh.hit.instID[0] : KDRT_INVALID_ID;
+    h.cell = 0;
     return h;
+}
+
+// rtcIntersect1's answer for the ray, in kdrt's terms.
+static kdrt_hit intersect(RTCScene scene, const kdrt_ray &ray) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh = rtc_ray_hit(ray);
+    rtcIntersect1(scene, &context, &rh);
+    return kdrt_answer(rh);
+}
+
+// The context of the batch and packet calls: the rays come in tiles or spawned in their primary
+// rays' order, so the caller says they are coherent (Embree's fast coherent paths; a hint only).
+static RTCIntersectContext coherent_context() {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    return context;
+}
+
+// rtcIntersect1 / rtcOccluded1, a call a ray.
+static double trace_single(RTCScene scene, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion, PeerRun &out) {
+    if (occlusion)
+        return common::timed_parallel(rays.size(), threads, [&](size_t i) {
+            RTCIntersectContext context;
+            rtcInitIntersectContext(&context);
+            RTCRay ray = rtc_ray(rays[i]);
+            rtcOccluded1(scene, &context, &ray);
+            out.occluded[i] = ray.tfar < 0;  // rtcOccluded1 sets tfar to -inf on a hit
+        });
+    return common::timed_parallel(rays.size(), threads, [&](size_t i) { out.hits[i] = intersect(scene, rays[i]); });
+}
+
+// rtcIntersect1M / rtcOccluded1M on batch_size consecutive rays at a time (the rays of a chunk
+// on one thread), from arrays filled before the clock starts.
+static double trace_stream(RTCScene scene, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
+                           uint32_t batch_size, PeerRun &out) {
+    const size_t chunks = (rays.size() + batch_size - 1) / batch_size;
+    const auto chunk_size = [&](size_t c) { return unsigned(std::min<size_t>(batch_size, rays.size() - c * batch_size)); };
+    if (occlusion) {
+        std::vector<RTCRay> stream(rays.size());
+        for (size_t i = 0; i < rays.size(); ++i) stream[i] = rtc_ray(rays[i]);
+        const double ms = common::timed_parallel(chunks, threads, [&](size_t c) {
+            RTCIntersectContext context = coherent_context();
+            rtcOccluded1M(scene, &context, &stream[c * batch_size], chunk_size(c), sizeof(RTCRay));
+        });
+        for (size_t i = 0; i < rays.size(); ++i) out.occluded[i] = stream[i].tfar < 0;
+        return ms;
+    }
+    std::vector<RTCRayHit> stream(rays.size());
+    for (size_t i = 0; i < rays.size(); ++i) stream[i] = rtc_ray_hit(rays[i]);
+    const double ms = common::timed_parallel(chunks, threads, [&](size_t c) {
+        RTCIntersectContext context = coherent_context();
+        rtcIntersect1M(scene, &context, &stream[c * batch_size], chunk_size(c), sizeof(RTCRayHit));
+    });
+    for (size_t i = 0; i < rays.size(); ++i) out.hits[i] = kdrt_answer(stream[i]);
+    return ms;
+}
+
+// The packet calls, by width: Embree's SoA structures and its calls on them.
+template <int K> struct Packet;
+template <> struct Packet<8> {
+    using Rays = RTCRay8;
+    using RayHits = RTCRayHit8;
+    static void intersect(const int *valid, RTCScene s, RTCIntersectContext *c, RayHits *p) { rtcIntersect8(valid, s, c, p); }
+    static void occluded(const int *valid, RTCScene s, RTCIntersectContext *c, Rays *p) { rtcOccluded8(valid, s, c, p); }
+};
+template <> struct Packet<16> {
+    using Rays = RTCRay16;
+    using RayHits = RTCRayHit16;
+    static void intersect(const int *valid, RTCScene s, RTCIntersectContext *c, RayHits *p) { rtcIntersect16(valid, s, c, p); }
+    static void occluded(const int *valid, RTCScene s, RTCIntersectContext *c, Rays *p) { rtcOccluded16(valid, s, c, p); }
+};
+
+// Lane `lane` of a ray packet (RTCRay8 or RTCRay16) set to the ray.
+template <typename Rays> static void set_lane(Rays &p, int lane, const kdrt_ray &r) {
+    p.org_x[lane] = r.org[0], p.org_y[lane] = r.org[1], p.org_z[lane] = r.org[2];
+    p.dir_x[lane] = r.dir[0], p.dir_y[lane] = r.dir[1], p.dir_z[lane] = r.dir[2];
+    p.tnear[lane] = r.tmin, p.tfar[lane] = r.tmax, p.time[lane] = 0;
+    p.mask[lane] = ~0u, p.id[lane] = 0, p.flags[lane] = 0;
+}
+
+// rtcIntersectK / rtcOccludedK on each K consecutive rays, from packets filled before the clock
+// starts. Embree reads the valid masks with aligned loads: one 64-byte line each.
+template <int K>
+static double trace_packets(RTCScene scene, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion, PeerRun &out) {
+    struct alignas(64) Valid { int lane[16]; };
+    const size_t packets = (rays.size() + K - 1) / K;
+    std::vector<Valid> valid(packets);
+    for (size_t p = 0; p < packets; ++p)
+        for (int k = 0; k < K; ++k) valid[p].lane[k] = p * K + k < rays.size() ? -1 : 0;
+    if (occlusion) {
+        std::vector<typename Packet<K>::Rays> soa(packets);
+        for (size_t i = 0; i < rays.size(); ++i) set_lane(soa[i / K], int(i % K), rays[i]);
+        const double ms = common::timed_parallel(packets, threads, [&](size_t p) {
+            RTCIntersectContext context = coherent_context();
+            Packet<K>::occluded(valid[p].lane, scene, &context, &soa[p]);
+        });
+        for (size_t i = 0; i < rays.size(); ++i) out.occluded[i] = soa[i / K].tfar[i % K] < 0;
+        return ms;
+    }
+    std::vector<typename Packet<K>::RayHits> soa(packets);
+    for (size_t i = 0; i < rays.size(); ++i) {
+        const size_t p = i / K;
+        const int k = int(i % K);
+        set_lane(soa[p].ray, k, rays[i]);
+        soa[p].hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        soa[p].hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    const double ms = common::timed_parallel(packets, threads, [&](size_t p) {
+        RTCIntersectContext context = coherent_context();
+        Packet<K>::intersect(valid[p].lane, scene, &context, &soa[p]);
+    });
+    for (size_t i = 0; i < rays.size(); ++i) {  // each lane back as a single ray's answer
+        const auto &packet = soa[i / K];
+        const size_t k = i % K;
+        RTCRayHit rh;
+        rh.ray.tfar = packet.ray.tfar[k];
+        rh.hit.u = packet.hit.u[k], rh.hit.v = packet.hit.v[k];
+        rh.hit.primID = packet.hit.primID[k], rh.hit.geomID = packet.hit.geomID[k];
+        rh.hit.instID[0] = packet.hit.instID[0][k];
+        out.hits[i] = kdrt_answer(rh);
+    }
+    return ms;
+}
+
+// What the run should say about a packet width this CPU (or this Embree) lacks natively; Embree
+// then splits each packet into narrower ones (rtcIntersect16 as two 8-wide packets on AVX2).
+static std::string packet_note(RTCDevice device, Call call, bool occlusion) {
+    const bool sixteen = call == Call::packet16;
+    const RTCDeviceProperty native = sixteen ? RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED : RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED;
+    if (rtcGetDeviceProperty(device, native)) return "";
+    return std::string(occlusion ? "rtcOccluded" : "rtcIntersect") + (sixteen ? "16" : "8") +
+           " is not native on this CPU or Embree build (" + (sixteen ? "no AVX-512" : "no AVX") +
+           "): Embree traces each packet as narrower packets, and the " + call_name(call) + " rows measure that";
 }
 
 // A triangle geometry holding a copy of mesh (in Embree's own buffers: it reads vertex buffers 16
@@ -92,10 +232,10 @@ static RTCGeometry new_triangle_geometry(RTCDevice device, const kdrt_triangles 
     return geometry;
 }
 
-bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
-                PeerQuality quality, unsigned build_threads, PeerRun &out, std::string &error) {
+bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, const Options &opt, PeerQuality quality,
+                std::vector<PeerRun> &runs, std::string &error) {
     // Its build on as many threads as kdrt's ("threads=0": all cores, as --build-threads 0).
-    const std::string config = "threads=" + std::to_string(build_threads);
+    const std::string config = "threads=" + std::to_string(opt.build_threads);
     const RTCBuildQuality rtc_quality = quality == PeerQuality::low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
     RTCDevice device = rtcNewDevice(config.c_str());
     if (!device) {
@@ -116,7 +256,7 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
 
     common::Stopwatch build_clock;
     rtcCommitScene(scene);
-    out.build_ms = build_clock.ms();
+    const double build_ms = build_clock.ms();
     if (rtcGetDeviceError(device) != RTC_ERROR_NONE) {
         error = "Embree failed to build the scene";
         rtcReleaseScene(scene);
@@ -124,21 +264,29 @@ bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, uns
         return false;
     }
 
-    if (occlusion) {
-        out.occluded.assign(rays.size(), 0);
-        out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) {
-            RTCIntersectContext context;
-            rtcInitIntersectContext(&context);
-            RTCRay ray = rtc_ray(rays[i]);
-            rtcOccluded1(scene, &context, &ray);
-            out.occluded[i] = ray.tfar < 0;  // rtcOccluded1 sets tfar to -inf on a hit
-        });
-        rtcReleaseScene(scene);
-        rtcReleaseDevice(device);
-        return true;
+    const bool occlusion = opt.rays == RayKind::shadow;
+    runs.clear();
+    for (Call call : opt.calls) {
+        PeerRun out;
+        out.call = call;
+        out.build_ms = build_ms;
+        if (occlusion) out.occluded.assign(rays.size(), 0);
+        else out.hits.assign(rays.size(), kdrt_hit{});
+        switch (call) {
+        case Call::single: out.trace_ms = trace_single(scene, rays, opt.threads, occlusion, out); break;
+        case Call::batch: out.trace_ms = trace_stream(scene, rays, opt.threads, occlusion, opt.batch_size, out); break;
+        case Call::packet8: out.trace_ms = trace_packets<8>(scene, rays, opt.threads, occlusion, out); break;
+        case Call::packet16: out.trace_ms = trace_packets<16>(scene, rays, opt.threads, occlusion, out); break;
+        }
+        if (call == Call::packet8 || call == Call::packet16) out.note = packet_note(device, call, occlusion);
+        const RTCError refused = rtcGetDeviceError(device);  // e.g. an Embree built without packets
+        if (refused != RTC_ERROR_NONE) {
+            out.traced = false;
+            out.note = std::string("Embree refused the ") + call_name(call) + " calls (RTCError " +
+                       std::to_string(int(refused)) + "): no " + call_name(call) + " row";
+        }
+        runs.push_back(std::move(out));
     }
-    out.hits.assign(rays.size(), kdrt_hit{});
-    out.trace_ms = common::timed_parallel(rays.size(), threads, [&](size_t i) { out.hits[i] = intersect(scene, rays[i]); });
     rtcReleaseScene(scene);
     rtcReleaseDevice(device);
     return true;

@@ -2,6 +2,7 @@
 // Embree at configure time, embree_available() is false and the bench says so.
 #pragma once
 
+#include "bench.hpp"  // Call, Options
 #include "kdrt.h"
 #include "common/mesh_io.hpp"
 
@@ -12,9 +13,12 @@
 namespace kb {
 
 struct PeerRun {
+    Call call = Call::single;
     double build_ms = 0, trace_ms = 0;
     std::vector<kdrt_hit> hits;  // in kdrt's terms: triangle, t, u, v (KDRT_INVALID_ID on a miss)
-    std::vector<unsigned char> occluded;  // with occlusion: 1 where rtcOccluded1 found a hit
+    std::vector<unsigned char> occluded;  // with occlusion: 1 where Embree found a hit
+    bool traced = true;  // false: Embree refused the call (note says so), and there is no row
+    std::string note;    // what the run should say about the call: not native on this CPU, refused
 };
 
 bool embree_available();
@@ -23,11 +27,16 @@ bool embree_available();
 enum class PeerQuality { low, medium };
 const char *peer_quality_name(PeerQuality quality);
 
-// Builds at `quality` on a device of build_threads threads (0: all cores), then traces with
-// rtcIntersect1 (or, with occlusion, rtcOccluded1) on `threads` threads. false with a message if
-// Embree fails.
-bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, unsigned threads, bool occlusion,
-                PeerQuality quality, unsigned build_threads, PeerRun &out, std::string &error);
+// Builds at `quality` on a device of opt.build_threads threads (0: all cores), then traces the
+// rays once with each of opt.calls in turn on opt.threads threads, a PeerRun each in `runs`
+// (sharing the build): single with rtcIntersect1, batch with rtcIntersect1M on opt.batch_size
+// rays at a time, packet8 and packet16 with rtcIntersect8 and rtcIntersect16 on consecutive rays
+// (every lane valid, the last packet's missing lanes off); shadow rays (opt.rays) with the
+// rtcOccluded forms. The batch and packet calls pass RTC_INTERSECT_CONTEXT_FLAG_COHERENT, and
+// their rays are laid out in Embree's structures before the clock starts (rtcIntersect1 converts
+// each ray as it goes, a few nanoseconds). false with a message if the build fails.
+bool embree_run(const common::Mesh &mesh, const std::vector<kdrt_ray> &rays, const Options &opt, PeerQuality quality,
+                std::vector<PeerRun> &runs, std::string &error);
 
 struct SceneLayout;
 

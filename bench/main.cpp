@@ -112,12 +112,6 @@ struct Progress {
     }
 };
 
-// "800x800 primary rays", as the progress lines name a frame's rays.
-std::string frame_rays(const kb::Options &opt, kb::RayKind kind) {
-    const char *names[] = {"primary", "diffuse", "random", "shadow"};
-    return std::to_string(opt.width) + "x" + std::to_string(opt.height) + " " + names[int(kind)] + " rays";
-}
-
 // expand_inputs(), each folder without a mesh file noted and counted as a failure.
 std::vector<std::string> mesh_files(const std::vector<std::string> &args, Progress &progress, int &failures) {
     std::vector<std::string> empty_folders;
@@ -394,7 +388,7 @@ bool run_scene(const kb::Options &opt, const kb::SceneLayout &layout, const kdrt
             }, {}, {}});
         }
         // Every variant in turn, pass after pass, so that a busy moment of the machine falls on all.
-        progress.step("--scene " + layout.name + ": tracing " + frame_rays(opt, kind) + " through " +
+        progress.step("--scene " + layout.name + ": tracing " + kb::frame_rays(opt, kind) + " through " +
                       std::to_string(variants.size()) + " variants, " + std::to_string(opt.repeat) +
                       (opt.repeat == 1 ? " pass" : " passes"));
         for (unsigned pass = 0; pass < opt.repeat; ++pass)
@@ -505,6 +499,64 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
     return failures ? 1 : 0;
 }
 
+// One trace's answers: hits (nearest hit) or, for shadow rays, occluded; a ray each.
+struct Answers {
+    std::vector<kdrt_hit> hits;
+    std::vector<unsigned char> occluded;
+};
+
+// Traces the rays through tree as `call` hands them over, on opt.threads threads; the wall time
+// in ms. single: kdrt_intersect (kdrt_occluded for shadow rays), or with rules their _query
+// forms, a call a ray. batch: kdrt_intersect_batch (kdrt_occluded_batch) on opt.batch_size
+// consecutive rays at a time, a chunk's rays on one thread.
+double trace_kdrt(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, const kdrt_query *rules, kb::Call call,
+                  const kb::Options &opt, Answers &out) {
+    const bool shadow = opt.rays == kb::RayKind::shadow;  // any hit: kdrt_occluded
+    out.hits.resize(shadow ? 0 : rays.size());
+    out.occluded.resize(shadow ? rays.size() : 0);
+    std::vector<kdrt_hit> &hits = out.hits;
+    std::vector<unsigned char> &occluded = out.occluded;
+    if (call == kb::Call::batch) {
+        const size_t size = opt.batch_size, chunks = (rays.size() + size - 1) / size;
+        return common::timed_parallel(chunks, opt.threads, [&](size_t c) {
+            const uint32_t count = uint32_t(std::min(size, rays.size() - c * size));
+            if (shadow) kdrt_occluded_batch(tree, &rays[c * size], count, rules, &occluded[c * size]);
+            else kdrt_intersect_batch(tree, &rays[c * size], count, rules, &hits[c * size]);
+        });
+    }
+    if (shadow && rules)
+        return common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded_query(tree, &rays[i], rules); });
+    if (shadow)
+        return common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
+    if (rules)
+        return common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect_query(tree, &rays[i], rules, &hits[i]); });
+    return common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+}
+
+// The batch calls' promise (kdrt.h, BATCHES): each ray's answer is the single call's, bit for bit.
+// Empty when it is kept; else what differs, for the run's failure message.
+std::string batch_differences(const Answers &batch, const Answers &single, bool shadow) {
+    size_t first = 0;
+    const size_t differing = shadow ? kb::count_differing_occlusion(batch.occluded, single.occluded, first)
+                                    : kb::count_differing_hits(batch.hits, single.hits, first);
+    if (!differing) return "";
+    const size_t rays = shadow ? single.occluded.size() : single.hits.size();
+    std::string text = std::to_string(differing) + " of " + std::to_string(rays) + " rays answered otherwise by " +
+                       (shadow ? "kdrt_occluded_batch than by kdrt_occluded" : "kdrt_intersect_batch than by kdrt_intersect") +
+                       "; the first, ray " + std::to_string(first) + ": ";
+    if (shadow)
+        return text + "batch " + std::to_string(int(batch.occluded[first])) + ", single " + std::to_string(int(single.occluded[first]));
+    return text + "batch " + kb::describe_hit(batch.hits[first]) + "; single " + kb::describe_hit(single.hits[first]);
+}
+
+// ", calls single, batch" for the progress lines, when --batch asks for more than the default.
+std::string calls_label(const std::vector<kb::Call> &calls) {
+    if (calls.size() == 1 && calls[0] == kb::Call::single) return "";
+    std::string text;
+    for (kb::Call call : calls) text += (text.empty() ? ", calls " : ", ") + std::string(kb::call_name(call));
+    return text;
+}
+
 int run(int argc, char **argv) {
     kb::Options opt;
     std::string error;
@@ -529,6 +581,16 @@ int run(int argc, char **argv) {
         if (!opt.compare_embree)
             progress.status("built without Embree: kdrt's rows only (install libembree-dev and configure again "
                             "to measure Embree beside kdrt)");
+    }
+    const bool packets = std::any_of(opt.calls.begin(), opt.calls.end(), [](kb::Call c) {
+        return c == kb::Call::packet8 || c == kb::Call::packet16;
+    });
+    if (packets && !opt.compare_embree && opt.scenes.empty() && !opt.accuracy) {
+        const bool kdrt_rows = !kb::kdrt_calls(opt).empty();
+        std::fprintf(stderr, "kdrt-bench: --batch packet8 and packet16 time Embree's rtcIntersect8/16, and %s%s\n",
+                     opt.compare_chosen ? "--compare none leaves Embree out" : "this kdrt-bench was built without Embree",
+                     kdrt_rows ? ": drop them, or compare with Embree" : ": there would be no row");
+        return 2;
     }
     // Open the output before any work, so an unwritable path costs nothing.
     Csv csv;
@@ -595,9 +657,14 @@ int run(int argc, char **argv) {
         if (low) peer_qualities.push_back(kb::PeerQuality::low);
         if (medium) peer_qualities.push_back(kb::PeerQuality::medium);
     }
+    // kdrt's calls of --batch (the packets are Embree's): with none, no kdrt build at all.
+    const std::vector<kb::Call> kdrt_calls = kb::kdrt_calls(opt);
+    const bool batched = std::find(kdrt_calls.begin(), kdrt_calls.end(), kb::Call::batch) != kdrt_calls.end();
+    const std::vector<kb::BuildVariant> kdrt_variants = kdrt_calls.empty() ? std::vector<kb::BuildVariant>() : variants;
+    std::vector<std::string> peer_notes;  // said once a run
     for (const Input &in : inputs)  // a progress line per build, before its repetitions
         progress.total += kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()).size() * intersectors.size() *
-                              variants.size() +
+                              kdrt_variants.size() +
                           peer_qualities.size();
     const std::string repetitions = opt.repeat > 1 ? ", " + std::to_string(opt.repeat) + " times" : "";
 
@@ -621,14 +688,23 @@ int run(int argc, char **argv) {
             ++failures;
             continue;
         }
-        std::vector<kdrt_ray> rays = kb::make_rays(scene, opt.rays, opt.width, opt.height, scout, seed);
+        std::vector<uint32_t> pixels;
+        std::vector<kdrt_ray> rays = kb::make_rays(scene, opt.rays, opt.width, opt.height, scout, seed, &pixels);
         kdrt_tree_free(scout);
+        {  // in tiles, or shuffled, as --batch, --tile and --shuffle say (the pixel order by default)
+            const std::vector<size_t> order =
+                kb::ray_order(pixels, opt.width, opt.tile_width, opt.tile_height, opt.shuffle, seed);
+            std::vector<kdrt_ray> ordered;
+            ordered.reserve(rays.size());
+            for (size_t i : order) ordered.push_back(rays[i]);
+            rays.swap(ordered);
+        }
 
         // The reference for a fixed sample of the rays, computed once for every row of this mesh.
         const oracle::Oracle oracle(scene.geometry);
         const std::vector<size_t> sample = kb::reference_sample(rays.size(), opt.reference_rays, seed);
         progress.status(in.label + ": " + std::to_string(scene.geometry.triangle_count()) + " triangles, " +
-                        frame_rays(opt, opt.rays) + ": the reference answers of " + std::to_string(sample.size()) +
+                        kb::frame_rays(opt, opt.rays) + ": the reference answers of " + std::to_string(sample.size()) +
                         " of them");
         std::vector<kdrt_ray> sampled;
         for (size_t i : sample) sampled.push_back(rays[i]);
@@ -639,10 +715,9 @@ int run(int argc, char **argv) {
         row.triangles = scene.geometry.triangle_count();
         row.rays = rays.size();
         row.reference_rays = sample.size();
-        std::vector<kdrt_hit> hits(rays.size());
         const bool shadow = opt.rays == kb::RayKind::shadow;  // any hit: kdrt_occluded
-        std::vector<unsigned char> occluded(rays.size());
-        for (const kb::BuildVariant &variant : variants)
+        Answers single_answers, batch_answers;
+        for (const kb::BuildVariant &variant : kdrt_variants)
         for (uint32_t leaf : kb::leaf_sizes_for(opt.leaf_sizes, in.mesh.triangle_count()))
             for (kdrt_intersector intersector : intersectors)
                 for (unsigned rep = 0; rep < opt.repeat; ++rep) {
@@ -652,7 +727,8 @@ int run(int argc, char **argv) {
                                       (opt.sah_costs.empty() ? "" : " " + variant.sah_costs) + " leaf " +
                                       std::to_string(leaf) +
                                       (opt.intersectors.empty() ? "" : std::string(" ") + kb::intersector_name(intersector)) +
-                                      ": building and tracing " + frame_rays(opt, opt.rays) + repetitions);
+                                      ": building and tracing " + kb::frame_rays(opt, opt.rays) +
+                                      calls_label(kdrt_calls) + repetitions);
                     kdrt_build_options options = variant.options;
                     options.max_leaf_size = leaf;
                     options.intersector = intersector;
@@ -684,22 +760,30 @@ int run(int argc, char **argv) {
                         kdrt_query q = kdrt_default_query();
                         q.filter = kb::take_every_hit;
                         const kdrt_query *rules = query == "filter" ? &q : nullptr;
-                        if (shadow && rules) {
-                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded_query(tree, &rays[i], rules); });
-                        } else if (shadow) {
-                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { occluded[i] = (unsigned char)kdrt_occluded(tree, &rays[i]); });
-                        } else if (rules) {
-                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect_query(tree, &rays[i], rules, &hits[i]); });
-                        } else {
-                            row.trace_ms = common::timed_parallel(rays.size(), opt.threads, [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });
+                        bool traced_single = false;
+                        for (kb::Call call : kdrt_calls) {
+                            Answers &answers = call == kb::Call::batch ? batch_answers : single_answers;
+                            row.trace_ms = trace_kdrt(tree, rays, rules, call, opt, answers);
+                            traced_single |= call == kb::Call::single;
+                            row.query = query;
+                            row.start = start;
+                            row.call = kb::call_name(call);
+                            row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, answers.occluded, row.triangles)
+                                                    : kb::count_mismatches(oracle, refs, sample, rays, answers.hits);
+                            if (!csv.line(kb::csv_row(row), write_error)) {
+                                kdrt_tree_free(tree);
+                                return write_failed();
+                            }
                         }
-                        row.query = query;
-                        row.start = start;
-                        row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, occluded, row.triangles)
-                                                : kb::count_mismatches(oracle, refs, sample, rays, hits);
-                        if (!csv.line(kb::csv_row(row), write_error)) {
-                            kdrt_tree_free(tree);
-                            return write_failed();
+                        if (batched) {  // every run checks the batch against the single calls
+                            if (!traced_single) trace_kdrt(tree, rays, rules, kb::Call::single, opt, single_answers);
+                            const std::string differences = batch_differences(batch_answers, single_answers, shadow);
+                            if (!differences.empty()) {
+                                progress.note("kdrt-bench: " + in.label + ": " + variant.builder + " leaf " +
+                                              std::to_string(leaf) + ", start " + start + ", query " + query + ": " +
+                                              differences);
+                                ++failures;
+                            }
                         }
                     }
                     }
@@ -709,27 +793,35 @@ int run(int argc, char **argv) {
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
                 if (rep == 0)
                     progress.step(in.label + ": embree " + kb::peer_quality_name(quality) + ": building and tracing " +
-                                  frame_rays(opt, opt.rays) + repetitions);
-                kb::PeerRun peer;
-                if (!kb::embree_run(scene.geometry, rays, opt.threads, shadow, quality, opt.build_threads, peer, error)) {
+                                  kb::frame_rays(opt, opt.rays) + calls_label(opt.calls) + repetitions);
+                std::vector<kb::PeerRun> runs;
+                if (!kb::embree_run(scene.geometry, rays, opt, quality, runs, error)) {
                     progress.note("kdrt-bench: " + in.label + ": Embree: " + error);
                     ++failures;
                     break;
                 }
-                row.builder = "embree";
-                row.sah_costs.clear();
-                row.quality = kb::peer_quality_name(quality);
-                row.build_threads = build_pool.threads();  // the device's threads, as kdrt's build's
-                row.intersector.clear();  // Embree's own test
-                row.query.clear();
-                row.start.clear();
-                row.max_leaf_size = -1;
-                row.has_tree_stats = false;
-                row.build_ms = peer.build_ms;
-                row.trace_ms = peer.trace_ms;
-                row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, peer.occluded, row.triangles)
-                                        : kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
-                if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
+                for (const kb::PeerRun &peer : runs) {
+                    if (!peer.note.empty() && std::find(peer_notes.begin(), peer_notes.end(), peer.note) == peer_notes.end()) {
+                        peer_notes.push_back(peer.note);  // once a run
+                        progress.note("kdrt-bench: Embree: " + peer.note);
+                    }
+                    if (!peer.traced) continue;
+                    row.builder = "embree";
+                    row.sah_costs.clear();
+                    row.quality = kb::peer_quality_name(quality);
+                    row.build_threads = build_pool.threads();  // the device's threads, as kdrt's build's
+                    row.intersector.clear();  // Embree's own test
+                    row.query.clear();
+                    row.start.clear();
+                    row.max_leaf_size = -1;
+                    row.has_tree_stats = false;
+                    row.call = kb::call_name(peer.call);
+                    row.build_ms = peer.build_ms;
+                    row.trace_ms = peer.trace_ms;
+                    row.mismatches = shadow ? kb::count_occlusion_mismatches(oracle, refs, sample, rays, peer.occluded, row.triangles)
+                                            : kb::count_mismatches(oracle, refs, sample, rays, peer.hits);
+                    if (!csv.line(kb::csv_row(row), write_error)) return write_failed();
+                }
             }
     }
     if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");

@@ -14,17 +14,20 @@ import sys
 from collections import defaultdict
 
 
-def read_rows(path, tool="plot_bench"):
+def read_rows(path, tool="plot_bench", every_call=False):
     """The rows of a kdrt-bench CSV as dicts; exits naming `tool` when it is not one. Rows of
-    --query filter are left out: the tables and plots compare the plain queries. Of a run with
-    --start cell,root (the default for diffuse and shadow rays), the rows from the start cells
-    are kept: rays spawned at hits carry their cells, as a renderer's do."""
+    --query filter are left out: the tables and plots compare the plain queries; so are the rows
+    of --batch's batch and packet calls (Call other than single), unless every_call (as
+    bench/batch_table.py reads them). Of a run with --start cell,root (the default for diffuse
+    and shadow rays), the rows from the start cells are kept: rays spawned at hits carry their
+    cells, as a renderer's do."""
     with open(path, newline="") as f:
         reader = csv.DictReader(f, delimiter=";")
         missing = {"Mesh", "MaxLeafSize", "ElapsedMs"} - set(reader.fieldnames or [])
         if missing:
             sys.exit(f"{tool}: {path}: not a kdrt-bench CSV (no {', '.join(sorted(missing))} column)")
-        rows = [r for r in reader if r.get("Query") in (None, "", "plain")]
+        rows = [r for r in reader
+                if r.get("Query") in (None, "", "plain") and (every_call or r.get("Call") in (None, "single"))]
     if any(r.get("Start") == "cell" for r in rows):
         rows = [r for r in rows if r.get("Start") != "root"]
     return rows

@@ -1,28 +1,36 @@
 # Checks the CSV of a run that traces each tree twice on one build: bench_query (KIND query:
 # --query plain,filter, shadow rays, from the root; the filter takes every hit) gives a plain row
 # then a filter row, bench_start (KIND start: diffuse rays, --start's default) a row from the
-# start cells then one from the root. Octahedron, leaf size 1; both rows agree with the reference
-# (no mismatches) and share the build.
+# start cells then one from the root, bench_batch and bench_batch_shadow (KIND batch: --batch
+# batch,single, from the root) a row of kdrt_intersect_batch (kdrt_occluded_batch) calls then one
+# of a call a ray. Leaf size 1 on the octahedron, or on MESH of TRIANGLES triangles (with the
+# wall) when given; both rows agree with the reference (no mismatches) and share the build.
+if(NOT DEFINED MESH)
+  set(MESH OCTAHEDRON)
+  set(TRIANGLES 10)
+endif()
 file(STRINGS "${CSV}" lines)
 list(LENGTH lines n)
 if(NOT n EQUAL 3)
   message(FATAL_ERROR "expected the header and 2 rows, got ${n} lines: ${lines}")
 endif()
 list(GET lines 0 header)
-if(NOT header MATCHES ";Quality;Query;Start$")
+if(NOT header MATCHES ";Quality;Query;Start;Call$")
   message(FATAL_ERROR "bad header: ${header}")
 endif()
 if(KIND STREQUAL "start")
-  set(tails "plain\\|cell" "plain\\|root")
+  set(tails "plain\\|cell\\|single" "plain\\|root\\|single")
+elseif(KIND STREQUAL "batch")
+  set(tails "plain\\|root\\|batch" "plain\\|root\\|single")
 else()
-  set(tails "plain\\|root" "filter\\|root")
+  set(tails "plain\\|root\\|single" "filter\\|root\\|single")
 endif()
 foreach(i 1 2)
   list(GET lines ${i} row)
   string(REPLACE ";" "|" row "${row}")
   math(EXPR k "${i} - 1")
   list(GET tails ${k} tail)
-  if(NOT row MATCHES "^OCTAHEDRON\\|1\\|[0-9]+\\|sah\\|10\\|([0-9.]+)\\|.*\\|0\\|[0-9]+\\|watertight\\|.*\\|${tail}$")
+  if(NOT row MATCHES "^${MESH}\\|1\\|[0-9]+\\|sah\\|${TRIANGLES}\\|([0-9.]+)\\|.*\\|0\\|[0-9]+\\|watertight\\|.*\\|${tail}$")
     message(FATAL_ERROR "row ${i}: expected a SAH row ending ${tail} with no mismatches: ${row}")
   endif()
   set(build_ms_${i} "${CMAKE_MATCH_1}")

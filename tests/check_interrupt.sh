@@ -44,8 +44,9 @@ else
     fail "kdrt-bench did not say where its rows are"
   [ -z "$(tail -c 1 "$out.partial")" ] || fail "$out.partial ends in a partial line"
   columns=$(head -n 1 "$out.partial" | tr -cd ';' | wc -c)
-  # Every column there; BuildThreads, third from last, never empty (Quality and Query may be).
-  awk -F';' -v n=$((columns + 1)) 'NF != n || $(NF - 2) == "" { exit 1 }' "$out.partial" ||
+  # Every column there; BuildThreads, fifth from last, never empty (Quality, Query and Start may
+  # be).
+  awk -F';' -v n=$((columns + 1)) 'NF != n || $(NF - 4) == "" { exit 1 }' "$out.partial" ||
     fail "$out.partial has a row cut short"
 fi
 echo "SIG$signal: $program died of it, $out as it was$([ "$kind" = bench ] && echo ", $(($(wc -l < "$out.partial") - 1)) row(s) in $out.partial")"

@@ -11,10 +11,10 @@
   kdrt-render-mesh and kdrt-ray-costs, and their --help says so.
 - SetupScript: tools/setup.sh waits for a held apt or dpkg lock and passes apt-get its lock
   timeout (against stand-ins for dpkg-query, sudo and apt-get, with locks of the test's own).
-- RmseVsTime, FramesToVideo, QualityTable: examples/render/rmse_vs_time.py (against
+- RmseVsTime, FramesToVideo, QualityTable, BatchTable: examples/render/rmse_vs_time.py (against
   tests/fake_kdrt_render.py, which has kdrt-render's command line), examples/render/
-  frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed) and
-  bench/quality_table.py (on small CSVs written here).
+  frames_to_video.sh (on frames ffmpeg makes, when ffmpeg is installed), bench/quality_table.py
+  and bench/batch_table.py (on small CSVs written here).
 
 usage: tests/check_tools.py [TEST ...] [PROGRAM=PATH ...]
   TEST: a unittest name (ExitStatus, ExitStatus.test_kdrt_inspect, ...; default: all)
@@ -578,6 +578,51 @@ class QualityTable(unittest.TestCase):
         done = run([sys.executable, BENCH / "quality_table.py", "--primary", old, "--diffuse", old, "--two-threads", old])
         self.assertNotEqual(done.returncode, 0)
         self.assertIn("no Quality column", done.stderr)
+
+
+class BatchTable(unittest.TestCase):
+    HEADER = QualityTable.HEADER + ";Call"
+
+    def setUp(self):
+        self.dir = Path(tempfile.mkdtemp(prefix="kdrt_batch_test_"))
+
+    def tearDown(self):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+    def csv(self, name, rows):
+        path = self.dir / name
+        path.write_text(self.HEADER + "\n" + "\n".join(rows) + "\n")
+        return path
+
+    @staticmethod
+    def row(builder, call, mrays, leaf=4, query="plain", mismatches=0):
+        kd = builder == "sah"
+        return (f"BALL;{leaf if kd else -1};1;{builder};1000;1;1;{mrays};{'10;5;3;8.00;80000' if kd else ';;;;'};"
+                f"{mismatches};100;{'watertight' if kd else ''};{'500.000' if kd else ''};{'30:20:0.1' if kd else ''};"
+                f"1;{'default' if kd else 'medium'};{query if kd else ''};{'root' if kd else ''};{call}")
+
+    def test_calls_side_by_side_medians_and_ratios(self):
+        r = self.row
+        primary = self.csv("p.csv", [r("sah", "single", 4), r("sah", "single", 6), r("sah", "batch", 6, mismatches=1),
+                                     r("sah", "batch", 1, query="filter"), r("embree", "single", 8),
+                                     r("embree", "batch", 9), r("embree", "packet8", 10), r("embree", "packet16", 12)])
+        done = run([sys.executable, BENCH / "batch_table.py", f"primary, 4x2 tiles={primary}"])
+        self.assertEqual(done.returncode, 0, done.stderr)
+        lines = [line for line in done.stdout.splitlines() if line.startswith("| BALL")]
+        self.assertEqual(len(lines), 1)
+        cells = [c.strip() for c in lines[0].split("|")[1:-1]]
+        # kdrt: the median of 4 and 6, the filter row left out; batch over Embree's fastest, 12.
+        self.assertEqual(cells, ["BALL", "1,000", "primary, 4x2 tiles", "5.00", "6.00", "1.20x", "8.00", "9.00",
+                                 "10.00", "12.00", "0.50x", "1"])
+
+    def test_a_csv_of_two_trees_is_refused(self):
+        two = self.csv("two.csv", [self.row("sah", "single", 4, leaf=1), self.row("sah", "single", 4, leaf=4)])
+        done = run([sys.executable, BENCH / "batch_table.py", f"primary={two}"])
+        self.assertNotEqual(done.returncode, 0)
+        self.assertIn("2 kinds of sah build", done.stderr)
+        done = run([sys.executable, BENCH / "batch_table.py", str(two)])
+        self.assertNotEqual(done.returncode, 0)
+        self.assertIn("want LABEL=CSV", done.stderr)
 
 
 if __name__ == "__main__":

@@ -493,7 +493,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
                                                 "Intersector", "SahCost", "SahCosts", "BuildThreads", "Quality",
-                                                "Query", "Start"});
+                                                "Query", "Start", "Call"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
@@ -533,6 +533,10 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     CHECK(f[16] == "123.457");
     CHECK(f[17].empty());  // median: no cost constants of its own
     CHECK(f[19].empty());  // nor a quality
+    CHECK(f[22] == "single");  // a call a ray, unless the row says otherwise
+    row.call = kb::call_name(kb::Call::batch);
+    CHECK(split(kb::csv_row(row), ';').back() == "batch");
+    row.call = "single";
     row.quality = "fast";
     CHECK(split(kb::csv_row(row), ';')[19] == "fast");
     row.quality.clear();
@@ -553,6 +557,139 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     for (int c : {8, 9, 10, 11, 12, 16}) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
     row.intersector.clear();  // Embree's own triangle test
     CHECK(split(kb::csv_row(row), ';')[15].empty());
+}
+
+TEST_CASE("bench option --batch: the calls, a row each, and the rays in tiles", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    // Without it: a call a ray, in the pixel order, as the runs before batches.
+    REQUIRE(parse({}, opt, error));
+    CHECK(opt.calls == std::vector<kb::Call>{kb::Call::single});
+    CHECK(kb::kdrt_calls(opt) == std::vector<kb::Call>{kb::Call::single});
+    CHECK((opt.tile_width == 1 && opt.tile_height == 1 && !opt.shuffle));
+    CHECK(opt.batch_size == kb::kDefaultBatchSize);
+    CHECK(kb::frame_rays(opt, kb::RayKind::primary) == "800x800 primary rays");
+
+    // Given, the rays come in 4x2 tiles; kdrt has the single and batch calls, Embree all four.
+    REQUIRE(parse({"--batch", "Batch,single,packet16,PACKET8", "--batch-size", "64"}, opt, error));
+    CHECK(opt.calls == std::vector<kb::Call>{kb::Call::batch, kb::Call::single, kb::Call::packet16, kb::Call::packet8});
+    CHECK(kb::kdrt_calls(opt) == std::vector<kb::Call>{kb::Call::batch, kb::Call::single});
+    CHECK((opt.tile_width == 4 && opt.tile_height == 2));
+    CHECK(opt.batch_size == 64);
+    CHECK(kb::frame_rays(opt, kb::RayKind::shadow) == "800x800 shadow rays in 4x2 tiles");
+    REQUIRE(parse({"--batch", "single", "--tile", "4x4"}, opt, error));
+    CHECK((opt.tile_width == 4 && opt.tile_height == 4));
+    REQUIRE(parse({"--tile", "2x4"}, opt, error));  // the order alone, for the single calls
+    CHECK(opt.calls == std::vector<kb::Call>{kb::Call::single});
+    CHECK((opt.tile_width == 2 && opt.tile_height == 4));
+    REQUIRE(parse({"--batch", "packet8", "--shuffle"}, opt, error));
+    CHECK(kb::kdrt_calls(opt).empty());
+    CHECK(opt.shuffle);
+    CHECK(kb::frame_rays(opt, kb::RayKind::diffuse) == "800x800 diffuse rays, shuffled");
+    for (kb::Call call : {kb::Call::single, kb::Call::batch, kb::Call::packet8, kb::Call::packet16}) {
+        std::vector<const char *> args = {"--batch", kb::call_name(call)};
+        REQUIRE(parse(args, opt, error));
+        CHECK(opt.calls == std::vector<kb::Call>{call});
+    }
+
+    const std::vector<std::vector<const char *>> bad = {
+        {"--batch", "stream"},     {"--batch", "single,"},  {"--batch", ""},        {"--batch"},
+        {"--batch-size", "0"},     {"--batch-size", "x"},   {"--batch-size", "64"},  // without the batch calls
+        {"--tile", "4"},           {"--tile", "0x2"},       {"--tile", "4x300"},
+        {"--accuracy", "--batch", "batch"}, {"--accuracy", "--shuffle"}, {"--scene", "merged", "--tile", "4x2"}};
+    for (const auto &args : bad) {
+        INFO(args[0] << " " << (args.size() > 1 ? args[1] : ""));
+        error.clear();
+        CHECK_FALSE(parse(args, opt, error));
+        const bool named = std::any_of(args.begin(), args.end(), [&](const char *a) {
+            return a[0] == '-' && error.find(a) != std::string::npos;
+        });
+        CHECK(named);
+    }
+}
+
+TEST_CASE("ray order: tiles row by row, pixels row by row in each, shadow and diffuse rays with their pixels", "[bench]") {
+    // A 6x3 frame in 4x2 tiles: two tiles across (the right one 2 wide), two down (the lower 1 high).
+    std::vector<uint32_t> pixels(18);
+    for (uint32_t i = 0; i < 18; ++i) pixels[i] = i;
+    std::vector<uint32_t> ordered;
+    for (size_t i : kb::ray_order(pixels, 6, 4, 2, false, 1)) ordered.push_back(pixels[i]);
+    CHECK(ordered == std::vector<uint32_t>{0, 1, 2, 3, 6, 7, 8, 9, 4, 5, 10, 11, 12, 13, 14, 15, 16, 17});
+    // 1x1 tiles: the pixel order; rays of some pixels only (those whose primary ray hit) keep it.
+    const std::vector<uint32_t> some = {1, 4, 5, 8, 13, 17};
+    std::vector<size_t> identity(some.size());
+    for (size_t i = 0; i < identity.size(); ++i) identity[i] = i;
+    CHECK(kb::ray_order(some, 6, 1, 1, false, 1) == identity);
+    ordered.clear();
+    for (size_t i : kb::ray_order(some, 6, 4, 2, false, 1)) ordered.push_back(some[i]);
+    CHECK(ordered == std::vector<uint32_t>{1, 8, 4, 5, 13, 17});
+    // Shuffled: every ray once, the same order for the same seed, not the pixel order.
+    std::vector<size_t> shuffled = kb::ray_order(pixels, 6, 4, 2, true, 1);
+    CHECK(shuffled == kb::ray_order(pixels, 6, 4, 2, true, 1));
+    CHECK(shuffled != kb::ray_order(pixels, 6, 1, 1, false, 1));
+    std::sort(shuffled.begin(), shuffled.end());
+    CHECK(shuffled == kb::ray_order(pixels, 6, 1, 1, false, 1));
+
+    // make_rays names each ray's pixel: a shadow ray's is its primary ray's.
+    const kb::Scene scene = kb::make_scene(kt::sphere(8, 16, 1.0), "BALL");
+    kt::TreePtr tree = kt::build(scene.geometry, 4, KDRT_BUILDER_MEDIAN);
+    std::vector<uint32_t> primary_pixels, shadow_pixels;
+    const std::vector<kdrt_ray> primary = kb::make_rays(scene, kb::RayKind::primary, 12, 8, tree.get(), 1, &primary_pixels);
+    const std::vector<kdrt_ray> shadow = kb::make_rays(scene, kb::RayKind::shadow, 12, 8, tree.get(), 1, &shadow_pixels);
+    REQUIRE(primary_pixels.size() == primary.size());
+    for (size_t i = 0; i < primary.size(); ++i) CHECK(primary_pixels[i] == i);
+    REQUIRE(shadow_pixels.size() == shadow.size());
+    REQUIRE_FALSE(shadow.empty());
+    for (size_t i = 0; i < shadow.size(); ++i) {
+        kdrt_hit h;
+        REQUIRE(kdrt_intersect(tree.get(), &primary[shadow_pixels[i]], &h));
+        float point[3];
+        REQUIRE(kdrt_hit_surface(tree.get(), &h, point, nullptr));
+        double gap = 0;  // the shadow ray starts at its primary ray's hit, offset by a hair
+        for (int a = 0; a < 3; ++a) gap = std::max(gap, std::fabs(double(shadow[i].org[a]) - point[a]));
+        CHECK(gap < 1e-4);
+    }
+    std::vector<uint32_t> diffuse_pixels;
+    const std::vector<kdrt_ray> diffuse = kb::make_rays(scene, kb::RayKind::diffuse, 12, 8, tree.get(), 1, &diffuse_pixels);
+    REQUIRE(diffuse_pixels.size() == diffuse.size());
+    CHECK(std::is_sorted(diffuse_pixels.begin(), diffuse_pixels.end()));  // in their primary rays' order
+}
+
+TEST_CASE("batch answers are compared with the single calls' bit for bit", "[bench]") {
+    kdrt_hit a{};
+    a.t = 1.5f, a.u = 0.25f, a.v = 0.5f, a.triangle = 7, a.geometry = 0, a.instance = KDRT_INVALID_ID, a.cell = 3;
+    const std::vector<kdrt_hit> single(5, a);
+    size_t first = 0;
+    CHECK(kb::count_differing_hits(single, single, first) == 0);
+    CHECK(first == SIZE_MAX);
+    // Each field, and a zero of the other sign, which == would call equal.
+    std::vector<kdrt_hit> batch = single;
+    batch[1].cell = 4;
+    batch[2].u = std::nextafter(a.u, 1.0f);
+    batch[4].t = 0.0f;
+    std::vector<kdrt_hit> zero = single;
+    zero[4].t = -0.0f;
+    CHECK(kb::count_differing_hits(batch, single, first) == 3);
+    CHECK(first == 1);
+    CHECK(kb::count_differing_hits(batch, zero, first) == 3);
+    CHECK(first == 1);
+    for (int field = 0; field < 4; ++field) {
+        std::vector<kdrt_hit> one = single;
+        if (field == 0) one[3].v = -a.v;
+        if (field == 1) one[3].triangle = 8;
+        if (field == 2) one[3].geometry = 1;
+        if (field == 3) one[3].instance = 0;
+        CHECK(kb::count_differing_hits(one, single, first) == 1);
+        CHECK(first == 3);
+    }
+    CHECK(kb::count_differing_hits(std::vector<kdrt_hit>(4, a), single, first) == 1);  // one answer missing
+    CHECK(first == 4);
+    CHECK(kb::describe_hit(a) == "triangle 7 t 0x1.8p+0 u 0x1p-2 v 0x1p-1 geometry 0 instance 4294967295 cell 3");
+
+    const std::vector<unsigned char> occluded = {1, 0, 1, 1};
+    CHECK(kb::count_differing_occlusion(occluded, occluded, first) == 0);
+    CHECK(kb::count_differing_occlusion({1, 0, 0, 1}, occluded, first) == 1);
+    CHECK(first == 2);
 }
 
 TEST_CASE("the benchmark scene: mesh fills the view, the wall sits behind it", "[bench]") {

@@ -25,6 +25,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -127,6 +128,76 @@ TEST_CASE("render: every preset renders the same image on 1 and 3 threads, and n
         CHECK(*range.second - *range.first > 0.2f);
         for (float v : one.rgb) REQUIRE(std::isfinite(v));
     }
+}
+
+namespace {
+
+// render() in 4x4 tiles against one-pixel tiles, bit for bit.
+void check_tiles(const kr::Renderer &renderer, uint32_t w, uint32_t h)
+{
+    INFO(w << "x" << h);
+    kr::RenderOptions options;
+    options.width = w, options.height = h, options.threads = 2, options.seed = 3;
+    kr::Image tiled, single;
+    std::string error;
+    REQUIRE(renderer.render(options, tiled, error));
+    options.one_pixel_tiles = true, options.threads = 1;
+    REQUIRE(renderer.render(options, single, error));
+    REQUIRE(tiled.rgb.size() == single.rgb.size());
+    for (size_t i = 0; i < tiled.rgb.size(); ++i)
+        if (std::memcmp(&tiled.rgb[i], &single.rgb[i], sizeof(float)) != 0) {
+            FAIL_CHECK("pixel (" << i / 3 % w << ", " << i / 3 / w << "): " << tiled.rgb[i] << " tiled, "
+                                 << single.rgb[i] << " a pixel at a time");
+            return;
+        }
+}
+
+}  // namespace
+
+TEST_CASE("render: 4x4 tiles of batched rays give one-pixel tiles' image, bit for bit, edge tiles cut short included", "[render][tiles]")
+{
+    // Sizes that cut the last column and row of tiles short (37x23, 6x7), and one smaller than a
+    // tile (3x2); two lights, so that each light's shadow rays are their own run in the batch;
+    // soft shadows, glass, a mirror and the bunny (PICTURE), or two meshes (BENCHMARKS).
+    for (const char *name : {"PICTURE", "BENCHMARKS", "PHASE_2_SOFT_SHADOWS"}) {
+        INFO("preset " << name);
+        kr::Scene scene;
+        std::string error;
+        REQUIRE(kr::make_preset(name, scene, error));
+        INFO(error);
+        REQUIRE(kr::load_meshes(scene, error));
+        scene.settings.nsamples = 2;
+        kr::Light second;
+        second.center = {0.3, 1.7, 0.6}, second.radius = 0.05, second.color = {0.3, 0.25, 0.2};
+        scene.lights.push_back(second);
+        kr::Renderer renderer;
+        REQUIRE(renderer.prepare(scene, 2, error));
+        check_tiles(renderer, 37, 23);
+        check_tiles(renderer, 6, 7);
+        check_tiles(renderer, 3, 2);
+        // kdrt-view's frames (accumulate) go through the same tiles.
+        common::ThreadScheduler scheduler(2);
+        kr::RenderOptions options;
+        options.width = 37, options.height = 23;
+        kr::Accumulation tiled, single;
+        for (int frame = 0; frame < 2; ++frame) {
+            REQUIRE(renderer.accumulate(options, tiled, scheduler, error));
+            options.one_pixel_tiles = true;
+            REQUIRE(renderer.accumulate(options, single, scheduler, error));
+            options.one_pixel_tiles = false;
+            CHECK(tiled.sum == single.sum);
+            CHECK(tiled.stream == single.stream);
+            CHECK(tiled.rays == single.rays);
+        }
+    }
+    // No light at all: Phong hits with no light samples, ambient only.
+    kr::Scene dark;
+    std::string error;
+    REQUIRE(kr::make_preset("PHASE_2_HARD_SHADOWS", dark, error));
+    dark.lights.clear();
+    kr::Renderer renderer;
+    REQUIRE(renderer.prepare(dark, 1, error));
+    check_tiles(renderer, 37, 23);
 }
 
 TEST_CASE("render: the seed changes the jittered samples, and nothing else does", "[render]")

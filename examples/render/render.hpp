@@ -68,6 +68,9 @@ struct RenderOptions {
     uint64_t seed = 0;      // with frame and the pixel's index, seeds each pixel's random stream
     uint32_t frame = 0;
     bool progress = false;  // progress bar with ETA on stderr
+    // Pixels are traced in tiles of 4x4, a batch of camera rays each; true makes every tile one
+    // pixel (the same image, bit for bit: the tests' reference for the tiles).
+    bool one_pixel_tiles = false;
 };
 
 // Progressive rendering (kdrt-view): the sums of each pixel's samples so far and where its random
@@ -116,7 +119,8 @@ public:
     double build_seconds() const;
 
     // Renders the scene into image (resized to options' size): NSAMPLES samples a pixel, one at
-    // the pixel's centre, more jittered over it, in 16x16 tiles on options.threads threads.
+    // the pixel's centre, more jittered over it, in 4x4 tiles on options.threads threads: each
+    // sample's camera rays of a tile traced in one batch, and their shadow rays in one a light.
     bool render(const RenderOptions &options, Image &image, std::string &error) const;
 
     // Adds samples to acc (restarted at options' size when its size differs), through the same
