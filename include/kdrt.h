@@ -793,6 +793,8 @@ KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
                                  const kdrt_query *query);
 /* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
    kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
+/* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
+   kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
 KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt_ray *rays,
                                              uint32_t count, const kdrt_query *query,
                                              kdrt_hit *hits);
@@ -4076,64 +4078,16 @@ typedef struct kdrt__packet {
     float lo[5], hi[5];
     unsigned negative; /* bit a: the directions' component a is negative */
     unsigned lanes;    /* lanes still walking */
-    unsigned alone;    /* lanes handed back to the single-ray walk (kdrt__packet_split_avx2) */
+    unsigned alone;    /* lanes handed back to the single-ray walk (kdrt__packet_walk) */
     unsigned found;    /* any_hit: lanes that found one */
 } kdrt__packet;
 
+/* A node for later, with the lanes that visit it and their ranges there. */
 typedef struct kdrt__packet_todo {
+    __m256 t0, t1;
     uint32_t node;
     unsigned lanes;
-    float t0[KDRT__LANES], t1[KDRT__LANES];
 } kdrt__packet_todo;
-
-/* The lanes' ranges at the children of a node, in the packet's order: first the child on the
-   side the rays come from (below when the directions' component on the axis is positive). */
-typedef struct kdrt__packet_sides {
-    unsigned first, second; /* the lanes that visit each */
-    float first_t1[KDRT__LANES], second_t0[KDRT__LANES]; /* first's t0 and second's t1 stay */
-} kdrt__packet_sides;
-
-/* kdrt__descend's decision at a plane for each lane of lanes, 8 at once with its operations, so
-   its decisions: near only, far only, both (near, the first, up to the plane, far from it), or the
-   origin on the plane (far, then the first, up to t = 0, near over the whole range). A lane whose
-   origin lies off the plane at a distance that rounds to t = 0 would have near first: it is
-   returned, to go back to the single-ray walk. */
-KDRT__TARGET_AVX2 static inline unsigned kdrt__packet_split_avx2(const kdrt__packet *p,
-                                                                 unsigned lanes, uint32_t axis,
-                                                                 float split,
-                                                                 const float t0[KDRT__LANES],
-                                                                 const float t1[KDRT__LANES],
-                                                                 kdrt__packet_sides *sides)
-{
-    const __m256 zero = _mm256_setzero_ps(), sp = _mm256_set1_ps(split);
-    const __m256 o = _mm256_loadu_ps(p->org[axis]), t_0 = _mm256_loadu_ps(t0);
-    const __m256 t_1 = _mm256_loadu_ps(t1);
-    const __m256 t_split = _mm256_mul_ps(_mm256_sub_ps(sp, o), _mm256_loadu_ps(p->inv_dir[axis]));
-    const __m256 lo = _mm256_mul_ps(t_split, _mm256_set1_ps(1.0f - KDRT__T_SLACK));
-    const __m256 hi = _mm256_mul_ps(t_split, _mm256_set1_ps(1.0f + KDRT__T_SLACK));
-    const __m256 near_first = (p->negative >> axis) & 1u ? _mm256_cmp_ps(o, sp, _CMP_GT_OQ)
-                                                         : _mm256_cmp_ps(o, sp, _CMP_LT_OQ);
-    const __m256 on_plane = _mm256_and_ps(_mm256_cmp_ps(t_split, zero, _CMP_EQ_OQ),
-                                          _mm256_cmp_ps(t_0, zero, _CMP_LE_OQ));
-    const __m256 near_only = _mm256_andnot_ps(
-        on_plane, _mm256_or_ps(_mm256_cmp_ps(t_split, zero, _CMP_LE_OQ), _mm256_cmp_ps(lo, t_1, _CMP_GT_OQ)));
-    const __m256 far_only = _mm256_andnot_ps(_mm256_or_ps(on_plane, near_only),
-                                             _mm256_cmp_ps(hi, t_0, _CMP_LT_OQ));
-    const __m256 both = _mm256_andnot_ps(_mm256_or_ps(_mm256_or_ps(on_plane, near_only), far_only),
-                                         _mm256_castsi256_ps(_mm256_set1_epi32(-1)));
-    const __m256 one_side = _mm256_or_ps(near_only, far_only);
-    /* near only and near first, or far only and far first: the first alone */
-    const __m256 first_only = _mm256_and_ps(one_side, _mm256_xor_ps(near_first, far_only));
-    const unsigned both_bits = (unsigned)_mm256_movemask_ps(_mm256_or_ps(both, on_plane));
-    const unsigned one_bits = (unsigned)_mm256_movemask_ps(one_side);
-    const unsigned first_bits = (unsigned)_mm256_movemask_ps(first_only);
-    _mm256_storeu_ps(sides->first_t1,
-                     _mm256_blendv_ps(_mm256_blendv_ps(t_1, hi, both), zero, on_plane));
-    _mm256_storeu_ps(sides->second_t0, _mm256_blendv_ps(t_0, lo, both));
-    sides->first = lanes & (both_bits | first_bits);
-    sides->second = lanes & (both_bits | (one_bits & ~first_bits));
-    return lanes & (unsigned)_mm256_movemask_ps(_mm256_and_ps(on_plane, near_first));
-}
 
 /* The triangles of a block that surely miss every ray of the packet: seen from each ray (its
    origin moved to 0 and sheared along +z, as the watertight test sees it), all three corners lie
@@ -4240,78 +4194,98 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, 
 }
 
 /* The packet's walk from the root: kdrt__walk_ray's walk from the root for each lane, the lanes
-   that visit the same node at once. Inlined twice, so that any_hit is a constant. */
+   that visit the same node at once. At a plane each lane takes kdrt__descend's decision, with its
+   operations, so the same one: near only, far only, both (near, the first, up to the plane, far
+   from it), or the origin on the plane (far, then the first, up to t = 0, near over the whole
+   range). The children are visited in the packet's order, the side the rays come from first; a
+   lane whose origin lies off the plane at a distance that rounds to t = 0 would visit them the
+   other way round: it goes back to the single-ray walk. Inlined twice, so that any_hit is a
+   constant. */
 KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tree *tree,
-                                                                  kdrt__packet *p,
-                                                                  const float t0_in[KDRT__LANES],
-                                                                  const float t1_in[KDRT__LANES],
-                                                                  int any_hit)
+                                                                  kdrt__packet *p, __m256 t0,
+                                                                  __m256 t1, int any_hit)
 {
     kdrt__packet_todo stack[KDRT_MAX_DEPTH];
-    kdrt__packet_sides sides;
-    float t0[KDRT__LANES], t1[KDRT__LANES];
+    const __m256 zero = _mm256_setzero_ps();
+    const __m256 below_slack = _mm256_set1_ps(1.0f - KDRT__T_SLACK);
+    const __m256 above_slack = _mm256_set1_ps(1.0f + KDRT__T_SLACK);
     uint32_t sp = 0, node = 0;
-    unsigned lanes = p->lanes, lane;
-    memcpy(t0, t0_in, sizeof t0), memcpy(t1, t1_in, sizeof t1);
+    unsigned lanes = p->lanes;
     for (;;) {
         const kdrt__node *n = &tree->nodes[node];
         if (!kdrt__node_is_leaf(n)) {
             const uint32_t axis = kdrt__node_axis(n);
-            const unsigned retire = kdrt__packet_split_avx2(p, lanes, axis, n->u.split, t0, t1, &sides);
-            if (retire) {
-                p->alone |= retire, p->lanes &= ~retire;
-                sides.first &= ~retire, sides.second &= ~retire;
-            }
-            if (sides.first && sides.second) {
+            const int negative = (int)((p->negative >> axis) & 1u);
+            const __m256 split = _mm256_set1_ps(n->u.split), o = _mm256_loadu_ps(p->org[axis]);
+            const __m256 t_split = _mm256_mul_ps(_mm256_sub_ps(split, o), _mm256_loadu_ps(p->inv_dir[axis]));
+            const __m256 lo = _mm256_mul_ps(t_split, below_slack);
+            const __m256 hi = _mm256_mul_ps(t_split, above_slack);
+            const __m256 near_first = negative ? _mm256_cmp_ps(o, split, _CMP_GT_OQ)
+                                               : _mm256_cmp_ps(o, split, _CMP_LT_OQ);
+            const __m256 on_plane = _mm256_and_ps(_mm256_cmp_ps(t_split, zero, _CMP_EQ_OQ),
+                                                  _mm256_cmp_ps(t0, zero, _CMP_LE_OQ));
+            const __m256 near_only = _mm256_andnot_ps(
+                on_plane, _mm256_or_ps(_mm256_cmp_ps(t_split, zero, _CMP_LE_OQ), _mm256_cmp_ps(lo, t1, _CMP_GT_OQ)));
+            const __m256 far_only = _mm256_andnot_ps(_mm256_or_ps(on_plane, near_only),
+                                                     _mm256_cmp_ps(hi, t0, _CMP_LT_OQ));
+            const __m256 one_side = _mm256_or_ps(near_only, far_only);
+            /* near only and near first, or far only and far first: the first child alone */
+            const unsigned first_only = (unsigned)_mm256_movemask_ps(
+                _mm256_and_ps(one_side, _mm256_xor_ps(near_first, far_only)));
+            const unsigned one = (unsigned)_mm256_movemask_ps(one_side);
+            const unsigned retire = lanes & (unsigned)_mm256_movemask_ps(_mm256_and_ps(on_plane, near_first));
+            const unsigned live = lanes & ~retire;
+            const unsigned first = live & (~one | first_only), second = live & (~one | ~first_only);
+            const uint32_t below = node + 1, above = kdrt__node_above(n);
+            if (retire) p->alone |= retire, p->lanes &= ~retire;
+            if (first && second) {
+                /* both, from the plane on (the origin on the plane: over the whole range) */
+                const __m256 both = _mm256_andnot_ps(_mm256_or_ps(one_side, on_plane), _mm256_cmp_ps(zero, zero, _CMP_EQ_OQ));
                 KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
-                stack[sp].node = node + 1, stack[sp].lanes = sides.second;
-                memcpy(stack[sp].t0, sides.second_t0, sizeof t0);
-                memcpy(stack[sp].t1, t1, sizeof t1);
-                if (!((p->negative >> axis) & 1u)) stack[sp].node = kdrt__node_above(n);
-                ++sp;
-            }
-            if (sides.first) {
-                const int below = !((p->negative >> axis) & 1u);
-                node = below ? node + 1 : kdrt__node_above(n);
-                lanes = sides.first;
-                memcpy(t1, sides.first_t1, sizeof t1);
+                stack[sp].t0 = _mm256_blendv_ps(t0, lo, both), stack[sp].t1 = t1;
+                stack[sp].node = negative ? below : above, stack[sp].lanes = second, ++sp;
+                t1 = _mm256_blendv_ps(_mm256_blendv_ps(t1, hi, both), zero, on_plane);
+                node = negative ? above : below, lanes = first;
                 continue;
             }
-            if (sides.second) {
-                node = (p->negative >> axis) & 1u ? node + 1 : kdrt__node_above(n);
-                lanes = sides.second;
-                memcpy(t0, sides.second_t0, sizeof t0);
+            if (first) {
+                node = negative ? above : below, lanes = first;
+                continue;
+            }
+            if (second) {
+                node = negative ? below : above, lanes = second;
                 continue;
             }
         } else {
+            unsigned lane, cells;
             if (p->sheared) {
                 const unsigned found = kdrt__packet_leaf_avx2(tree, n, p, lanes, any_hit);
                 p->found |= found, p->lanes &= ~found, lanes &= ~found;
-            } else
-                for (lane = 0; lane < KDRT__LANES; ++lane) {
-                    if (!((lanes >> lane) & 1u)) continue;
+            } else {
+                for (cells = lanes; cells; cells &= cells - 1u) {
+                    lane = (unsigned)__builtin_ctz(cells);
                     if (kdrt__test_leaf(tree, n, &p->s[lane], p->best[lane], any_hit, 0, NULL, NULL)) {
                         p->found |= 1u << lane, p->lanes &= ~(1u << lane);
                         continue;
                     }
                     p->bound[lane] = p->best[lane]->t;
                 }
-            if (!any_hit)
-                for (lane = 0; lane < KDRT__LANES; ++lane)
-                    if (((lanes >> lane) & 1u) && p->best[lane]->t <= t1[lane])
-                        p->hit_cell[lane] = node;
+            }
+            if (!any_hit) /* the lanes whose best hit so far may lie here */
+                for (cells = lanes & (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(
+                                         _mm256_loadu_ps(p->bound), t1, _CMP_LE_OQ));
+                     cells; cells &= cells - 1u)
+                    p->hit_cell[__builtin_ctz(cells)] = node;
         }
         /* Next node, with the lanes still walking that start it no later than their best hit. */
         for (;;) {
             if (sp == 0) return;
             --sp;
-            node = stack[sp].node;
-            lanes = stack[sp].lanes & p->lanes;
-            for (lane = 0; lane < KDRT__LANES; ++lane)
-                if (stack[sp].t0[lane] > p->bound[lane]) lanes &= ~(1u << lane);
+            lanes = stack[sp].lanes & p->lanes &
+                    ~(unsigned)_mm256_movemask_ps(_mm256_cmp_ps(stack[sp].t0, _mm256_loadu_ps(p->bound), _CMP_GT_OQ));
             if (lanes) break;
         }
-        memcpy(t0, stack[sp].t0, sizeof t0), memcpy(t1, stack[sp].t1, sizeof t1);
+        node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
     }
 }
 
@@ -4319,8 +4293,8 @@ KDRT__TARGET_AVX2 static void kdrt__packet_walk_avx2(const kdrt_tree *tree, kdrt
                                                      const float t0[KDRT__LANES],
                                                      const float t1[KDRT__LANES], int any_hit)
 {
-    if (any_hit) kdrt__packet_walk(tree, p, t0, t1, 1);
-    else kdrt__packet_walk(tree, p, t0, t1, 0);
+    if (any_hit) kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 1);
+    else kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 0);
 }
 
 typedef char kdrt__ray_is_9_floats[sizeof(kdrt_ray) == 9 * sizeof(float) ? 1 : -1];
@@ -4408,6 +4382,25 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
     _mm256_storeu_ps(p->shear[1], _mm256_div_ps(d[p->ky], d[p->kz]));
     _mm256_storeu_ps(p->shear[2], _mm256_div_ps(one, d[p->kz]));
     _mm256_storeu_ps(tmins, tmin);
+    {
+        /* the bounds over the packet's lanes of their origins' kx, ky, kz and shears */
+        const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        const __m256 in = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32((int)lanes), bit), bit));
+        const __m256 x[5] = {o[p->kx], o[p->ky], o[p->kz], _mm256_loadu_ps(p->shear[0]),
+                             _mm256_loadu_ps(p->shear[1])};
+        for (a = 0; a < 5; ++a) {
+            __m256 lo = _mm256_blendv_ps(_mm256_set1_ps(INFINITY), x[a], in);
+            __m256 hi = _mm256_blendv_ps(_mm256_set1_ps(-INFINITY), x[a], in);
+            lo = _mm256_min_ps(lo, _mm256_permute2f128_ps(lo, lo, 1));
+            hi = _mm256_max_ps(hi, _mm256_permute2f128_ps(hi, hi, 1));
+            lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0x4E));
+            hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0x4E));
+            lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0xB1));
+            hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0xB1));
+            p->lo[a] = _mm256_cvtss_f32(lo), p->hi[a] = _mm256_cvtss_f32(hi);
+        }
+    }
     for (left = lanes; left; left &= left - 1u) {
         const unsigned lane = (unsigned)__builtin_ctz(left);
         kdrt__ray_setup *s = &p->s[lane];
@@ -4483,16 +4476,6 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
         if (kdrt__bit_count(p.lanes) >= KDRT__PACKET_MIN_LANES) {
             const int axis[3] = {p.kx, p.ky, p.kz};
             int b;
-            for (b = 0; b < 5; ++b) p.lo[b] = INFINITY, p.hi[b] = -INFINITY;
-            for (left = p.lanes; left; left &= left - 1u) {
-                const unsigned l = (unsigned)__builtin_ctz(left);
-                const float x[5] = {p.org[axis[0]][l], p.org[axis[1]][l], p.org[axis[2]][l],
-                                    p.shear[0][l], p.shear[1][l]};
-                for (b = 0; b < 5; ++b) {
-                    p.lo[b] = x[b] < p.lo[b] ? x[b] : p.lo[b];
-                    p.hi[b] = x[b] > p.hi[b] ? x[b] : p.hi[b];
-                }
-            }
             /* Rays that part ways soon share few steps: they go one by one. */
             for (b = 0; b < 3; ++b)
                 if (p.hi[b] - p.lo[b] > KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]))
@@ -5342,12 +5325,29 @@ KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
     return scene && ray && kdrt__scene_query(scene, ray, query, &hit, 1, NULL);
 }
 
+/* A scene's batch: its mesh tree's rays in packets (kdrt__batch) when every hit of it counts, each
+   ray then through the instances as kdrt__scene_query takes it there. */
 KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt_ray *rays,
                                              uint32_t count, const kdrt_query *query,
                                              kdrt_hit *hits)
 {
     uint32_t i, found = 0;
     if (!hits) return 0;
+    if (scene && rays && scene->meshes && kdrt__query_is_plain(scene->meshes, query)) {
+        kdrt__batch(scene->meshes, rays, count, hits, NULL, 0);
+        for (i = 0; i < count; ++i) {
+            kdrt_hit *best = &hits[i];
+            int hit = best->triangle != KDRT_INVALID_ID;
+            if (hit) kdrt__name_mesh_hit(scene->meshes, best);
+            if (scene->instance_count) {
+                if (!hit) kdrt__miss(best), best->t = rays[i].tmax;
+                hit |= kdrt__walk_instances(scene, &rays[i], query, best, 0, NULL);
+                if (!hit) kdrt__miss(best);
+            }
+            found += (uint32_t)hit;
+        }
+        return found;
+    }
     for (i = 0; i < count; ++i) {
         if (scene && rays) found += (uint32_t)kdrt_scene_intersect(scene, &rays[i], query, &hits[i]);
         else kdrt__miss(&hits[i]);
@@ -5361,6 +5361,18 @@ KDRT_API uint32_t kdrt_scene_occluded_batch(const kdrt_scene *scene, const kdrt_
 {
     uint32_t i, found = 0;
     if (!occluded) return 0;
+    if (scene && rays && scene->meshes && kdrt__query_is_plain(scene->meshes, query)) {
+        kdrt__batch(scene->meshes, rays, count, NULL, occluded, 1);
+        for (i = 0; i < count; ++i) {
+            if (!occluded[i] && scene->instance_count) {
+                kdrt_hit hit;
+                kdrt__miss(&hit), hit.t = rays[i].tmax;
+                occluded[i] = (uint8_t)kdrt__walk_instances(scene, &rays[i], query, &hit, 1, NULL);
+            }
+            found += occluded[i];
+        }
+        return found;
+    }
     for (i = 0; i < count; ++i) {
         occluded[i] = (uint8_t)(scene && rays && kdrt_scene_occluded(scene, &rays[i], query));
         found += occluded[i];
