@@ -17,15 +17,11 @@
 namespace {
 
 using common::Mesh;
+using kt::node_info;
+using kt::random_direction;
 
 const float kInf = std::numeric_limits<float>::infinity();
 const float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-kdrt_node_info node_info(const kdrt_tree *tree, uint32_t node) {
-    kdrt_node_info info;
-    REQUIRE(kdrt_tree_node(tree, node, &info) == KDRT_SUCCESS);
-    return info;
-}
 
 // Every leaf's rope across each face names a node whose box covers the whole face, touching it
 // from the other side; a face on the tree's boundary has none, and only those. Inner nodes have
@@ -109,12 +105,6 @@ struct Compare {
                     ", " + std::to_string(hinted.dir[2]) + ") cell " + std::to_string(hinted.cell);
     }
 };
-
-void random_direction(common::Rng &rng, float d[3]) {
-    double v[3];
-    rng.direction(v);
-    for (int a = 0; a < 3; ++a) d[a] = float(v[a]);
-}
 
 // Rays of every kind the start cells meet, `count` of them about, each compared with its walk
 // from the root: rays spawned off hits (bounces and shadow rays to a point), rays from random

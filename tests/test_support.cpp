@@ -152,6 +152,18 @@ std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t s
     return rays;
 }
 
+void random_direction(Rng &rng, float d[3]) {
+    double v[3];
+    rng.direction(v);
+    for (int a = 0; a < 3; ++a) d[a] = float(v[a]);
+}
+
+kdrt_node_info node_info(const kdrt_tree *tree, uint32_t node) {
+    kdrt_node_info info;
+    REQUIRE(kdrt_tree_node(tree, node, &info) == KDRT_SUCCESS);
+    return info;
+}
+
 std::vector<kdrt_hit> trace_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays) {
     std::vector<kdrt_hit> hits(rays.size());
     common::timed_parallel(rays.size(), common::all_cores(), [&](size_t i) { kdrt_intersect(tree, &rays[i], &hits[i]); });

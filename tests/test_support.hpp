@@ -5,6 +5,7 @@
 
 #include "kdrt.h"
 #include "common/mesh_io.hpp"
+#include "common/random.hpp"
 #include "oracle/reference.hpp"
 
 #include <cstddef>
@@ -36,6 +37,12 @@ bool same_hit(const kdrt_hit &a, const kdrt_hit &b);
 // Random rays for a scene box: half start inside the box with a uniform direction, half start
 // outside it and aim at a uniform point inside; some carry a finite tmin or tmax.
 std::vector<kdrt_ray> random_rays(const kdrt_aabb &box, size_t count, uint32_t seed);
+
+// A uniformly distributed unit direction, rounded to float.
+void random_direction(common::Rng &rng, float d[3]);
+
+// kdrt_tree_node()'s description of node; REQUIREs success.
+kdrt_node_info node_info(const kdrt_tree *tree, uint32_t node);
 
 // Traces rays through tree on all cores (threads share the const tree), returning hits in order.
 std::vector<kdrt_hit> trace_all(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays);
