@@ -4338,7 +4338,8 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
     }
     tmin = _mm256_i32gather_ps(base + 3, stride, 4);
     tmax = _mm256_i32gather_ps(base + 7, stride, 4);
-    tmin = _mm256_and_ps(tmin, _mm256_cmp_ps(tmin, zero, _CMP_GT_OQ)); /* NaN and -0 give +0 */
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(tmin, tmin, _CMP_ORD_Q)); /* a NaN tmin: no hit */
+    tmin = _mm256_and_ps(tmin, _mm256_cmp_ps(tmin, zero, _CMP_GT_OQ)); /* -0 and below give +0 */
     ok = _mm256_and_ps(ok, _mm256_cmp_ps(tmin, tmax, _CMP_LE_OQ));
     if (!any_hit) /* a start cell: the ray takes its rope walk */
         ok = _mm256_and_ps(ok, _mm256_castsi256_ps(_mm256_cmpeq_epi32(
@@ -4516,7 +4517,7 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
 /* Whether query lets every hit of tree count, so that the plain walk answers it. */
 static int kdrt__query_is_plain(const kdrt_tree *tree, const kdrt_query *query)
 {
-    return !query || (!query->flags && !query->filter && query->mask && tree->masks_full);
+    return tree->masks_full && (!query || (!query->flags && !query->filter && query->mask));
 }
 
 /* rays[0 .. count) on tree under a plain query: into hits (nearest hit) or occluded (any_hit).

@@ -96,10 +96,10 @@ bool valid_cell(const kdrt_tree *tree, const kdrt_ray &r) {
 // (triangle KDRT_INVALID_ID, cell 0, and geometry and instance, which one-tree queries set to 0
 // and KDRT_INVALID_ID), not t, u and v, which it leaves unspecified (the single call leaves the
 // ray's tmax in t once the ray meets the tree's box, 0 before).
+// Every field, misses included: a miss's t, u, v are unspecified, but the batch leaves the
+// single-ray call's, so a caller sees no difference at all.
 bool same_answer(const kdrt_hit &batch, const kdrt_hit &single) {
-    if (single.triangle != KDRT_INVALID_ID) return std::memcmp(&batch, &single, sizeof batch) == 0;
-    return batch.triangle == KDRT_INVALID_ID && batch.cell == single.cell && batch.geometry == single.geometry &&
-           batch.instance == single.instance;
+    return std::memcmp(&batch, &single, sizeof batch) == 0;
 }
 
 // A packet walks together when its directions are finite and nonzero and share their signs.
