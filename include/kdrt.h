@@ -38,9 +38,10 @@
        KDRT_ASSERT(x)            internal invariant checks; default: assert() from <assert.h>
        KDRT_MALLOC(size, user)   default allocator when options.allocator is all zero;
        KDRT_FREE(ptr, user)      define both or neither (default: malloc and free)
-       KDRT_TRAVERSAL_STATS      also compile kdrt_intersect_counted(), which counts a query's
-                                 work (nodes, leaves, triangle tests); the other queries are
-                                 unchanged. Define it too where kdrt_intersect_counted() is called.
+       KDRT_TRAVERSAL_STATS      also compile kdrt_intersect_counted() and the batches'
+                                 _counted forms, which count a query's work (nodes, leaves,
+                                 triangle tests, packets); the other queries are unchanged.
+                                 Define it too where they are called.
        KDRT_SAH_BINS             bins per axis of the SAH builder's binned sweep: 2 to 1024,
                                  default 256
        KDRT_SAH_EXACT_MAX        SAH nodes of at most this many triangle references are split
@@ -711,11 +712,26 @@ typedef struct kdrt_traversal_stats {
     uint64_t rope_steps;     /* cells left through a face to the next (START CELLS) */
     uint64_t rope_nodes;     /* inner nodes passed going down from a rope to the next cell */
     uint64_t restarts;       /* rope walks handed to the walk from the root (an edge, a corner) */
+    /* Batches (BATCHES), the packets' shared work; the rays that go alone count above. */
+    uint64_t packets;          /* packets that walked */
+    uint64_t packet_lanes;     /* their rays */
+    uint64_t packet_steps;     /* inner nodes the packets visited */
+    uint64_t packet_step_lanes; /* lanes walking at those steps, added up */
+    uint64_t packet_leaves;    /* leaves the packets visited, empty ones included */
+    uint64_t packet_blocks;    /* blocks culled for a packet */
+    uint64_t packet_triangles; /* triangles the cull left, each tested against a packet's lanes */
 } kdrt_traversal_stats;
 #ifdef KDRT_TRAVERSAL_STATS
 /* kdrt_intersect(), adding its work to *stats (which may be NULL). */
 KDRT_API int kdrt_intersect_counted(const kdrt_tree *tree, const kdrt_ray *ray, kdrt_hit *hit,
                                     kdrt_traversal_stats *stats);
+/* kdrt_intersect_batch() and kdrt_occluded_batch() with a NULL query, adding their work. */
+KDRT_API uint32_t kdrt_intersect_batch_counted(const kdrt_tree *tree, const kdrt_ray *rays,
+                                               uint32_t count, kdrt_hit *hits,
+                                               kdrt_traversal_stats *stats);
+KDRT_API uint32_t kdrt_occluded_batch_counted(const kdrt_tree *tree, const kdrt_ray *rays,
+                                              uint32_t count, uint8_t *occluded,
+                                              kdrt_traversal_stats *stats);
 #endif
 
 /* Where a hit lies: the point from its barycentrics (more accurate than org + t * dir, whose
@@ -4057,6 +4073,17 @@ KDRT_API uint32_t kdrt_intersect_k(const kdrt_tree *tree, const kdrt_ray *ray,
 
 /* ==== batches: packets of rays that walk the tree together ==== */
 
+/* kdrt_intersect() into hit, or kdrt_occluded() where hit is NULL, counting into stats. Out of
+   line, and compiled for the caller's target, not AVX2's: the walk's speed is the single-ray
+   query's. */
+KDRT__NOINLINE static int kdrt__trace_alone(const kdrt_tree *tree, const kdrt_ray *ray,
+                                            kdrt_hit *hit, kdrt_traversal_stats *stats)
+{
+    kdrt_hit scratch;
+    return hit ? kdrt__intersect(tree, ray, hit, stats)
+               : kdrt__traverse(tree, ray, NULL, &scratch, 1, NULL, stats);
+}
+
 #ifdef KDRT__AVX2
 static int kdrt__bit_count(unsigned bits)
 {
@@ -4069,10 +4096,10 @@ static int kdrt__bit_count(unsigned bits)
    loop stays small. */
 KDRT__NOINLINE static int kdrt__walk_alone(const kdrt_tree *tree, uint32_t hint,
                                            const kdrt__ray_setup *s, float t0, float t1,
-                                           kdrt_hit *best, int any_hit)
+                                           kdrt_hit *best, int any_hit, kdrt_traversal_stats *stats)
 {
-    return any_hit ? kdrt__walk_ray(tree, hint, s, t0, t1, best, 1, 0, NULL)
-                   : kdrt__walk_ray(tree, hint, s, t0, t1, best, 0, 0, NULL);
+    return any_hit ? kdrt__walk_ray(tree, hint, s, t0, t1, best, 1, 0, stats)
+                   : kdrt__walk_ray(tree, hint, s, t0, t1, best, 0, 0, stats);
 }
 
 /* A packet (AVX2 kernel): up to 8 consecutive rays of a batch whose directions have no zero or
@@ -4180,7 +4207,7 @@ KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__packet_culled_avx2(con
    that found one when any_hit. */
 KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, const kdrt__node *n,
                                                          kdrt__packet *p, unsigned lanes,
-                                                         int any_hit)
+                                                         int any_hit, kdrt_traversal_stats *stats)
 {
     const uint32_t first = n->u.first, count = kdrt__node_count(n);
     const int kx = p->kx, ky = p->ky, kz = p->kz;
@@ -4195,6 +4222,7 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, 
         /* the block's own triangles: a last block's copies of its last one repeat its answer */
         unsigned triangles = count - i < KDRT__LANES ? (1u << (count - i)) - 1u : 0xFFu;
         triangles &= ~(p->point ? kdrt__packet_culled_avx2(block, p, 1) : kdrt__packet_culled_avx2(block, p, 0));
+        KDRT__COUNT(stats, packet_blocks, 1);
         if (kdrt__bit_count(triangles) > kdrt__bit_count(lanes)) {
             /* More triangles left than rays: each ray's test of the block costs less. */
             unsigned left;
@@ -4202,6 +4230,7 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, 
                 const unsigned lane = (unsigned)__builtin_ctz(left);
                 kdrt__candidates c;
                 const unsigned mask = kdrt__block_watertight_avx2(block, &p->s[lane], &c);
+                KDRT__COUNT(stats, block_tests, 1);
                 if (!mask || !kdrt__accept_lanes(p->best[lane], block, mask, &c, &p->s[lane], 0))
                     continue;
                 p->bound[lane] = p->best[lane]->t;
@@ -4213,6 +4242,7 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, 
         for (; triangles; triangles &= triangles - 1u) {
             const unsigned j = (unsigned)__builtin_ctz(triangles), id = block->id[j];
             __m256 fx[3], fy[3], fz[3];
+            KDRT__COUNT(stats, packet_triangles, 1);
             kdrt__candidates c;
             unsigned hits;
             int k;
@@ -4247,7 +4277,8 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, 
    constant. */
 KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tree *tree,
                                                                   kdrt__packet *p, __m256 t0,
-                                                                  __m256 t1, int any_hit)
+                                                                  __m256 t1, int any_hit,
+                                                                  kdrt_traversal_stats *stats)
 {
     kdrt__packet_todo stack[KDRT_MAX_DEPTH];
     const __m256 zero = _mm256_setzero_ps();
@@ -4281,6 +4312,8 @@ KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tre
             const unsigned live = lanes & ~retire;
             const unsigned first = live & (~one | first_only), second = live & (~one | ~first_only);
             const uint32_t below = node + 1, above = kdrt__node_above(n);
+            KDRT__COUNT(stats, packet_steps, 1);
+            KDRT__COUNT(stats, packet_step_lanes, (uint64_t)kdrt__bit_count(lanes));
             if (retire) p->alone |= retire, p->lanes &= ~retire;
             if (first && second) {
                 /* both, from the plane on (the origin on the plane: over the whole range) */
@@ -4302,13 +4335,14 @@ KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tre
             }
         } else {
             unsigned lane, cells;
+            KDRT__COUNT(stats, packet_leaves, 1);
             if (p->sheared) {
-                const unsigned found = kdrt__packet_leaf_avx2(tree, n, p, lanes, any_hit);
+                const unsigned found = kdrt__packet_leaf_avx2(tree, n, p, lanes, any_hit, stats);
                 p->found |= found, p->lanes &= ~found, lanes &= ~found;
             } else {
                 for (cells = lanes; cells; cells &= cells - 1u) {
                     lane = (unsigned)__builtin_ctz(cells);
-                    if (kdrt__test_leaf(tree, n, &p->s[lane], p->best[lane], any_hit, 0, NULL, NULL)) {
+                    if (kdrt__test_leaf(tree, n, &p->s[lane], p->best[lane], any_hit, 0, NULL, stats)) {
                         p->found |= 1u << lane, p->lanes &= ~(1u << lane);
                         continue;
                     }
@@ -4335,10 +4369,13 @@ KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tre
 
 KDRT__TARGET_AVX2 static void kdrt__packet_walk_avx2(const kdrt_tree *tree, kdrt__packet *p,
                                                      const float t0[KDRT__LANES],
-                                                     const float t1[KDRT__LANES], int any_hit)
+                                                     const float t1[KDRT__LANES], int any_hit,
+                                                     kdrt_traversal_stats *stats)
 {
-    if (any_hit) kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 1);
-    else kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 0);
+    KDRT__COUNT(stats, packets, 1);
+    KDRT__COUNT(stats, packet_lanes, (uint64_t)kdrt__bit_count(p->lanes));
+    if (any_hit) kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 1, stats);
+    else kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 0, stats);
 }
 
 typedef char kdrt__ray_is_9_floats[sizeof(kdrt_ray) == 9 * sizeof(float) ? 1 : -1];
@@ -4459,9 +4496,9 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
     return lanes;
 }
 
-/* Fewer rays than this in a packet go one by one: the packet's bookkeeping would cost more than
-   the steps it shares. */
-#define KDRT__PACKET_MIN_LANES 2
+/* Fewer rays than this in a packet go one by one: they share few steps, and a packet of two
+   walked at 1.4 lanes a step on shuffled rays, slower than alone (kdrt-ray-costs). */
+#define KDRT__PACKET_MIN_LANES 4
 /* A packet whose origins span more than this fraction of the tree's box on an axis, or whose
    shears span more than this, goes one by one: its rays part ways soon. */
 #define KDRT__PACKET_SPREAD 0.0625f
@@ -4469,7 +4506,8 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
 /* kdrt__batch with the AVX2 kernel: 8 rays at a time, as a packet where they can be one. */
 KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const kdrt_ray *rays,
                                                    uint32_t count, kdrt_hit *hits,
-                                                   uint8_t *occluded, int any_hit)
+                                                   uint8_t *occluded, int any_hit,
+                                                   kdrt_traversal_stats *stats)
 {
     kdrt__packet p;
     kdrt_hit scratch[KDRT__LANES]; /* any_hit: the walk's hits, unused after */
@@ -4485,8 +4523,7 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
                to the single-ray walk, a group more each time (up to 64), before trying again. */
             --skip;
             for (lane = 0; lane < n; ++lane) {
-                const int hit = any_hit ? kdrt_occluded(tree, &rays[i + lane])
-                                        : kdrt_intersect(tree, &rays[i + lane], &hits[i + lane]);
+                const int hit = kdrt__trace_alone(tree, &rays[i + lane], any_hit ? NULL : &hits[i + lane], stats);
                 if (any_hit) occluded[i + lane] = (uint8_t)hit;
                 found += (uint32_t)hit;
             }
@@ -4532,7 +4569,7 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
         walked = p.lanes;
         if (walked) failures = 0;
         else if (++failures >= 2) skip = failures < 8 ? 1u << (failures - 2) : 64u;
-        if (walked) kdrt__packet_walk_avx2(tree, &p, t0, t1, any_hit);
+        if (walked) kdrt__packet_walk_avx2(tree, &p, t0, t1, any_hit, stats);
         walked &= ~p.alone;
         for (left = p.alone; left; left &= left - 1u) { /* handed back during the walk: anew */
             const unsigned l = (unsigned)__builtin_ctz(left);
@@ -4545,7 +4582,7 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
             int hit;
             if (alone & bit)
                 hit = kdrt__walk_alone(tree, group[lane].cell, &p.s[lane], t0[lane], t1[lane],
-                                       p.best[lane], any_hit);
+                                       p.best[lane], any_hit, stats);
             else if (any_hit) hit = (p.found & bit) != 0;
             else {
                 hit = p.best[lane]->triangle != KDRT_INVALID_ID;
@@ -4568,14 +4605,15 @@ static int kdrt__query_is_plain(const kdrt_tree *tree, const kdrt_query *query)
 /* rays[0 .. count) on tree under a plain query: into hits (nearest hit) or occluded (any_hit).
    The scalar kernel walks them one by one. Returns how many hit. */
 static uint32_t kdrt__batch(const kdrt_tree *tree, const kdrt_ray *rays, uint32_t count,
-                            kdrt_hit *hits, uint8_t *occluded, int any_hit)
+                            kdrt_hit *hits, uint8_t *occluded, int any_hit,
+                            kdrt_traversal_stats *stats)
 {
     uint32_t i, found = 0;
 #ifdef KDRT__AVX2
-    if (tree->simd) return kdrt__batch_avx2(tree, rays, count, hits, occluded, any_hit);
+    if (tree->simd) return kdrt__batch_avx2(tree, rays, count, hits, occluded, any_hit, stats);
 #endif
     for (i = 0; i < count; ++i) {
-        int hit = any_hit ? kdrt_occluded(tree, &rays[i]) : kdrt_intersect(tree, &rays[i], &hits[i]);
+        const int hit = kdrt__trace_alone(tree, &rays[i], any_hit ? NULL : &hits[i], stats);
         if (any_hit) occluded[i] = (uint8_t)hit;
         found += (uint32_t)hit;
     }
@@ -4588,7 +4626,7 @@ KDRT_API uint32_t kdrt_intersect_batch(const kdrt_tree *tree, const kdrt_ray *ra
     uint32_t i, found = 0;
     if (!hits) return 0;
     if (tree && rays && kdrt__query_is_plain(tree, query))
-        return kdrt__batch(tree, rays, count, hits, NULL, 0);
+        return kdrt__batch(tree, rays, count, hits, NULL, 0, NULL);
     for (i = 0; i < count; ++i) {
         if (tree && rays) found += (uint32_t)kdrt_intersect_query(tree, &rays[i], query, &hits[i]);
         else kdrt__miss(&hits[i]);
@@ -4602,13 +4640,36 @@ KDRT_API uint32_t kdrt_occluded_batch(const kdrt_tree *tree, const kdrt_ray *ray
     uint32_t i, found = 0;
     if (!occluded) return 0;
     if (tree && rays && kdrt__query_is_plain(tree, query))
-        return kdrt__batch(tree, rays, count, NULL, occluded, 1);
+        return kdrt__batch(tree, rays, count, NULL, occluded, 1, NULL);
     for (i = 0; i < count; ++i) {
         occluded[i] = (uint8_t)(tree && rays && kdrt_occluded_query(tree, &rays[i], query));
         found += occluded[i];
     }
     return found;
 }
+
+#ifdef KDRT_TRAVERSAL_STATS
+KDRT_API uint32_t kdrt_intersect_batch_counted(const kdrt_tree *tree, const kdrt_ray *rays,
+                                               uint32_t count, kdrt_hit *hits,
+                                               kdrt_traversal_stats *stats)
+{
+    uint32_t i;
+    if (!hits) return 0;
+    if (tree && rays) return kdrt__batch(tree, rays, count, hits, NULL, 0, stats);
+    for (i = 0; i < count; ++i) kdrt__miss(&hits[i]);
+    return 0;
+}
+
+KDRT_API uint32_t kdrt_occluded_batch_counted(const kdrt_tree *tree, const kdrt_ray *rays,
+                                              uint32_t count, uint8_t *occluded,
+                                              kdrt_traversal_stats *stats)
+{
+    if (!occluded) return 0;
+    if (tree && rays) return kdrt__batch(tree, rays, count, NULL, occluded, 1, stats);
+    if (count) memset(occluded, 0, count);
+    return 0;
+}
+#endif
 
 /* ==== secondary rays ==== */
 
@@ -5380,7 +5441,7 @@ KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt
     uint32_t i, found = 0;
     if (!hits) return 0;
     if (scene && rays && scene->meshes && kdrt__query_is_plain(scene->meshes, query)) {
-        kdrt__batch(scene->meshes, rays, count, hits, NULL, 0);
+        kdrt__batch(scene->meshes, rays, count, hits, NULL, 0, NULL);
         for (i = 0; i < count; ++i) {
             kdrt_hit *best = &hits[i];
             int hit = best->triangle != KDRT_INVALID_ID;
@@ -5408,7 +5469,7 @@ KDRT_API uint32_t kdrt_scene_occluded_batch(const kdrt_scene *scene, const kdrt_
     uint32_t i, found = 0;
     if (!occluded) return 0;
     if (scene && rays && scene->meshes && kdrt__query_is_plain(scene->meshes, query)) {
-        kdrt__batch(scene->meshes, rays, count, NULL, occluded, 1);
+        kdrt__batch(scene->meshes, rays, count, NULL, occluded, 1, NULL);
         for (i = 0; i < count; ++i) {
             if (!occluded[i] && scene->instance_count) {
                 kdrt_hit hit;
