@@ -34,6 +34,10 @@ const char *const kUsage =
     "walk from the root) a ray takes on average, and its time in ns (thread CPU time, best of N\n"
     "passes). Diffuse and shadow rays from their start cells (kdrt_spawn_ray's) and from the\n"
     "root. SAH tree, leaf size 4, one thread.\n"
+    "Then a table of batches (kdrt_intersect_batch, kdrt_occluded_batch): per mesh and ray set, the\n"
+    "share of rays that walked in packets, and per packet the inner nodes it stepped through, the\n"
+    "lanes walking at a step, the leaves, the blocks culled and the triangles tested against its\n"
+    "rays, beside the batch's and the single calls' ns per ray.\n"
     "  --size WxH   the frame (default 400x400)\n"
     "  --repeat N   timed passes per class, the fastest kept (default 5)\n"
     "  --subdivide N  split every triangle in 4, N times, before building (default 0)\n"
@@ -66,6 +70,81 @@ double ns_per_ray(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, unsi
         if (pass == 0 || ns < best) best = ns;
     }
     return best;
+}
+
+// kdrt_intersect_batch (kdrt_occluded_batch where any_hit) on the rays, as one batch.
+double batch_ns_per_ray(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, unsigned repeat, bool any_hit)
+{
+    std::vector<kdrt_hit> hits(rays.size());
+    std::vector<uint8_t> occluded(rays.size());
+    const uint32_t n = uint32_t(rays.size());
+    double best = 0;
+    for (unsigned pass = 0; pass < repeat; ++pass) {
+        const double start = thread_cpu_ns();
+        const uint32_t found = any_hit ? kdrt_occluded_batch(tree, rays.data(), n, nullptr, occluded.data())
+                                       : kdrt_intersect_batch(tree, rays.data(), n, nullptr, hits.data());
+        const double ns = (thread_cpu_ns() - start) / double(rays.size());
+        if (found > n) std::abort();
+        if (pass == 0 || ns < best) best = ns;
+    }
+    return best;
+}
+
+// kdrt_occluded a ray at a time (ns_per_ray's kdrt_intersect, for shadow rays).
+double occluded_ns_per_ray(const kdrt_tree *tree, const std::vector<kdrt_ray> &rays, unsigned repeat)
+{
+    double best = 0;
+    for (unsigned pass = 0; pass < repeat; ++pass) {
+        const double start = thread_cpu_ns();
+        unsigned found = 0;
+        for (const kdrt_ray &ray : rays) found += unsigned(kdrt_occluded(tree, &ray));
+        const double ns = (thread_cpu_ns() - start) / double(rays.size());
+        if (found > rays.size()) std::abort();
+        if (pass == 0 || ns < best) best = ns;
+    }
+    return best;
+}
+
+std::string batches_error;
+
+// The batch table's rows of one mesh: its frame's rays as a renderer hands them over (in 4x2
+// tiles), shuffled, the shadow rays of those pixels, and their diffuse bounces.
+std::string batch_rows(const kb::Scene &scene, const kdrt_triangles &view, const kdrt_build_options &options,
+                       const kdrt_tree *tree, unsigned width, unsigned height, unsigned repeat)
+{
+    struct Set {
+        const char *name;
+        kb::RayKind kind;
+        bool shuffle, any_hit;
+    } const sets[] = {{"primary rays in 4x2 tiles", kb::RayKind::primary, false, false},
+                      {"the same, shuffled", kb::RayKind::primary, true, false},
+                      {"shadow rays in 4x2 tiles, from the root", kb::RayKind::shadow, false, true},
+                      {"diffuse rays in 4x2 tiles, from the root", kb::RayKind::diffuse, false, false}};
+    std::string rows;
+    for (const Set &set : sets) {
+        std::vector<uint32_t> pixels;
+        const std::vector<kdrt_ray> made = kb::make_rays(scene, set.kind, width, height, tree, 1, &pixels);
+        std::vector<kdrt_ray> rays;
+        for (size_t k : kb::ray_order(pixels, width, 4, 2, set.shuffle, 7)) {
+            rays.push_back(made[k]);
+            rays.back().cell = 0;  // hinted rays would take their rope walks, alone
+        }
+        if (rays.empty()) continue;
+        kdrt_traversal_stats work;
+        if (!kb::count_batch(view, options, rays, set.any_hit, work, batches_error)) return rows;
+        const double n = double(rays.size()), packets = double(work.packets);
+        char line[512], per_packet[256] = "- | - | - | - | -";
+        if (work.packets)
+            std::snprintf(per_packet, sizeof per_packet, "%.1f | %.2f | %.2f | %.2f | %.2f", work.packet_steps / packets,
+                          double(work.packet_step_lanes) / double(work.packet_steps), work.packet_leaves / packets,
+                          work.packet_blocks / packets, work.packet_triangles / packets);
+        std::snprintf(line, sizeof line, "| %s | %s | %zu | %.0f%% | %s | %.0f | %.0f |\n", scene.name.c_str(), set.name,
+                      rays.size(), 100.0 * double(work.packet_lanes) / n, per_packet,
+                      batch_ns_per_ray(tree, rays, repeat, set.any_hit),
+                      set.any_hit ? occluded_ns_per_ray(tree, rays, repeat) : ns_per_ray(tree, rays, repeat, false));
+        rows += line;
+    }
+    return rows;
 }
 
 int fail(const std::string &message)
@@ -120,6 +199,7 @@ int run(int argc, char **argv)
         meshes.push_back(mesh);
     }
 
+    std::vector<std::string> tables;
     std::printf("| Mesh | Rays | Count | Inner nodes | Leaves (empty) | Triangle tests | Rope steps | Rope nodes | "
                 "Restarts | ns per ray |\n");
     std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
@@ -189,8 +269,15 @@ int run(int argc, char **argv)
                         work.triangle_tests / n, work.rope_steps / n, work.rope_nodes / n, work.restarts / n,
                         ns_per_ray(tree, c.rays, repeat, c.locate));
         }
+        tables.push_back(batch_rows(scene, view, options, tree, width, height, repeat));
         kdrt_tree_free(tree);
     }
+    if (!batches_error.empty()) return fail(batches_error);
+    // Where a batch's time goes: the packets' shared work beside the rays that went alone.
+    std::printf("\n| Mesh | Batch of | Count | In packets | Steps a packet | Lanes a step | Leaves a packet | "
+                "Blocks culled a packet | Triangles tested a packet | ns per ray, batch | ns per ray, single |\n");
+    std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (const std::string &rows : tables) std::fputs(rows.c_str(), stdout);
     return 0;
 }
 
