@@ -3577,17 +3577,14 @@ KDRT__TARGET_AVX2 static inline void kdrt__widen(__m256 x, __m256d out[2])
    wrong. So the filter changes no answer, only how soon most blocks are left. */
 KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__surely_missed_avx2(const __m256 x[3], const __m256 y[3])
 {
-    /* edge j-i, the weight of corner k, for (k, i, j) = (0, 2, 1), (1, 0, 2), (2, 1, 0), as below;
-       written out, as compilers leave the loop of three rolled */
-    const __m256 a0 = _mm256_mul_ps(x[2], y[1]), b0 = _mm256_mul_ps(y[2], x[1]);
-    const __m256 a1 = _mm256_mul_ps(x[0], y[2]), b1 = _mm256_mul_ps(y[0], x[2]);
-    const __m256 a2 = _mm256_mul_ps(x[1], y[0]), b2 = _mm256_mul_ps(y[1], x[0]);
-    const __m256 neg = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(a0, b0, _CMP_LT_OQ),
-                                                 _mm256_cmp_ps(a1, b1, _CMP_LT_OQ)),
-                                    _mm256_cmp_ps(a2, b2, _CMP_LT_OQ));
-    const __m256 pos = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(a0, b0, _CMP_GT_OQ),
-                                                 _mm256_cmp_ps(a1, b1, _CMP_GT_OQ)),
-                                    _mm256_cmp_ps(a2, b2, _CMP_GT_OQ));
+    __m256 neg = _mm256_setzero_ps(), pos = _mm256_setzero_ps();
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const int i = (k + 2) % 3, j = (k + 1) % 3; /* edge j-i, weight of corner k, as below */
+        const __m256 a = _mm256_mul_ps(x[i], y[j]), b = _mm256_mul_ps(y[i], x[j]);
+        neg = _mm256_or_ps(neg, _mm256_cmp_ps(a, b, _CMP_LT_OQ));
+        pos = _mm256_or_ps(pos, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
+    }
     return (unsigned)_mm256_movemask_ps(_mm256_and_ps(neg, pos));
 }
 
@@ -4134,13 +4131,6 @@ typedef struct kdrt__packet_todo {
     unsigned lanes;
 } kdrt__packet_todo;
 
-/* The triangles of a block that surely miss every ray of the packet: seen from each ray (its
-   origin moved to 0 and sheared along +z, as the watertight test sees it), all three corners lie
-   on one side of x = 0 or of y = 0. Rounding is monotone, so the test's own sheared corners of
-   every lane lie within the bounds computed here from the bounds of the lanes' origins and
-   shears (products at the box's corners); the margin, 2^-20 of the magnitudes, covers a compiler
-   that fuses the test's multiply and subtract. A triangle with its corners on one side of the ray
-   has edge functions of both signs: the test would reject it for each ray. */
 /* One axis of one corner of kdrt__packet_culled_avx2: folds into *above and *below the lanes
    whose corner lies surely on that side of every ray. point: the lanes share their origin
    (d_lo = d_hi, dz_lo = dz_hi), which saves half the products. */
@@ -4171,6 +4161,13 @@ KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__cull_axis_avx2(
     }
 }
 
+/* The triangles of a block that surely miss every ray of the packet: seen from each ray (its
+   origin moved to 0 and sheared along +z, as the watertight test sees it), all three corners lie
+   on one side of x = 0 or of y = 0. Rounding is monotone, so the test's own sheared corners of
+   every lane lie within the bounds computed here from the bounds of the lanes' origins and
+   shears (products at the box's corners); the margin, 2^-20 of the magnitudes, covers a compiler
+   that fuses the test's multiply and subtract. A triangle with its corners on one side of the ray
+   has edge functions of both signs: the test would reject it for each ray. */
 KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__packet_culled_avx2(const kdrt__block *block,
                                                                             const kdrt__packet *p,
                                                                             int point)
