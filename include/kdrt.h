@@ -4515,10 +4515,11 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
         const kdrt_ray *group = rays + i;
         float t0[KDRT__LANES], t1[KDRT__LANES];
         unsigned lane, left, walked, alone;
-        if (skip) {
+        if (skip || n < KDRT__PACKET_MIN_LANES) {
             /* Incoherent rays: after packets that did not form, the next groups go straight
-               to the single-ray walk, a group more each time (up to 64), before trying again. */
-            --skip;
+               to the single-ray walk, a group more each time (up to 64), before trying again.
+               So do groups too small for a packet (a batch of one ray: its single call). */
+            if (skip) --skip;
             for (lane = 0; lane < n; ++lane) {
                 const int hit = kdrt__trace_alone(tree, &rays[i + lane], any_hit ? NULL : &hits[i + lane], stats);
                 if (any_hit) occluded[i + lane] = (uint8_t)hit;
