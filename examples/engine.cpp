@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <deque>
 #include <functional>
 #include <mutex>
@@ -158,13 +159,32 @@ int main() {
     const int width = 64, height = 24;
     std::vector<char> image(size_t(width) * height);
     Counts counts;
+    const auto camera_ray = [&](int x, int y) { // a character is about twice as tall as wide
+        const float sx = (2.0f * (x + 0.5f) / width - 1) * 0.9f, sy = (1 - 2.0f * (y + 0.5f) / height) * 0.35f;
+        return kdrt_ray{{0, 4, 6}, 0, {sx, -0.555f + 0.832f * sy, -0.832f - 0.555f * sy}, INFINITY, 0};
+    };
     jobs.parallel_for(height, [&](uint32_t y) {
-        for (int x = 0; x < width; ++x) { // a character is about twice as tall as wide
-            const float sx = (2.0f * (x + 0.5f) / width - 1) * 0.9f, sy = (1 - 2.0f * (y + 0.5f) / height) * 0.35f;
-            const kdrt_ray ray = {{0, 4, 6}, 0, {sx, -0.555f + 0.832f * sy, -0.832f - 0.555f * sy}, INFINITY, 0};
-            image[size_t(y) * width + x] = " .:-=+*#%@"[std::min(9, int(10 * shade(tree, ray, true, counts)))];
-        }
+        for (int x = 0; x < width; ++x)
+            image[size_t(y) * width + x] = " .:-=+*#%@"[std::min(9, int(10 * shade(tree, camera_ray(x, int(y)), true, counts)))];
     });
+
+    // The same camera rays handed over at once, as a renderer hands them: in 4 x 2 pixel tiles,
+    // whose 8 neighbouring rays walk the tree together (kdrt.h, BATCHES). Each answer is the
+    // single call's, bit for bit.
+    std::vector<kdrt_ray> tiles;
+    for (int ty = 0; ty < height; ty += 2)
+        for (int tx = 0; tx < width; tx += 4)
+            for (int y = ty; y < ty + 2; ++y)
+                for (int x = tx; x < tx + 4; ++x) tiles.push_back(camera_ray(x, y));
+    std::vector<kdrt_hit> tile_hits(tiles.size());
+    const uint32_t tile_found = kdrt_intersect_batch(tree, tiles.data(), uint32_t(tiles.size()), nullptr, tile_hits.data());
+    uint32_t tile_differ = 0;
+    for (size_t i = 0; i < tiles.size(); ++i) {
+        kdrt_hit one;
+        kdrt_intersect(tree, &tiles[i], &one);
+        tile_differ += std::memcmp(&one, &tile_hits[i], sizeof one) != 0;
+    }
+    std::printf("one batch: %u of %zu camera rays hit\n", tile_found, tiles.size());
 
     // Line of sight from an eye inside the level, between the boxes, to points on the ground:
     // kdrt_locate() finds the cell that holds the eye once, and every ray from there starts in it
@@ -184,6 +204,10 @@ int main() {
     kdrt_tree_free(tree);
     if (eye_cell == 0 || differ) {
         std::fprintf(stderr, "the eye's cell is %u, and %u answers from it differ from the root's\n", eye_cell, differ);
+        return 1;
+    }
+    if (tile_differ || tile_found != counts.hits.load()) {
+        std::fprintf(stderr, "%u batch answers differ from the single calls'\n", tile_differ);
         return 1;
     }
 
