@@ -4081,6 +4081,19 @@ KDRT__NOINLINE static int kdrt__trace_alone(const kdrt_tree *tree, const kdrt_ra
                : kdrt__traverse(tree, ray, NULL, &scratch, 1, NULL, stats);
 }
 
+/* rays[0 .. count) one by one: into hits, or occluded where hits is NULL. Returns how many hit. */
+static uint32_t kdrt__batch_alone(const kdrt_tree *tree, const kdrt_ray *rays, uint32_t count,
+                                  kdrt_hit *hits, uint8_t *occluded, kdrt_traversal_stats *stats)
+{
+    uint32_t i, found = 0;
+    for (i = 0; i < count; ++i) {
+        const int hit = kdrt__trace_alone(tree, &rays[i], hits ? &hits[i] : NULL, stats);
+        if (!hits) occluded[i] = (uint8_t)hit;
+        found += (uint32_t)hit;
+    }
+    return found;
+}
+
 #ifdef KDRT__AVX2
 static int kdrt__bit_count(unsigned bits)
 {
@@ -4520,11 +4533,8 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
                to the single-ray walk, a group more each time (up to 64), before trying again.
                So do groups too small for a packet (a batch of one ray: its single call). */
             if (skip) --skip;
-            for (lane = 0; lane < n; ++lane) {
-                const int hit = kdrt__trace_alone(tree, &rays[i + lane], any_hit ? NULL : &hits[i + lane], stats);
-                if (any_hit) occluded[i + lane] = (uint8_t)hit;
-                found += (uint32_t)hit;
-            }
+            found += any_hit ? kdrt__batch_alone(tree, rays + i, n, NULL, occluded + i, stats)
+                             : kdrt__batch_alone(tree, rays + i, n, hits + i, NULL, stats);
             continue;
         }
         if (n < KDRT__LANES) {
@@ -4553,17 +4563,18 @@ KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const 
             best->t = p.s[lane].tmax;
             p.hit_cell[lane] = 0;
         }
-        if (kdrt__bit_count(p.lanes) >= KDRT__PACKET_MIN_LANES) {
+        {
+            /* Too few lanes, or rays that part ways soon, share few steps: they go one by one. */
             const int axis[3] = {p.kx, p.ky, p.kz};
-            int b;
-            p.point = p.lo[0] == p.hi[0] && p.lo[1] == p.hi[1] && p.lo[2] == p.hi[2];
-            /* Rays that part ways soon share few steps: they go one by one. */
-            for (b = 0; b < 3; ++b)
-                if (p.hi[b] - p.lo[b] > KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]))
-                    alone |= p.lanes, p.lanes = 0;
-            if (p.hi[3] - p.lo[3] > KDRT__PACKET_SPREAD || p.hi[4] - p.lo[4] > KDRT__PACKET_SPREAD)
-                alone |= p.lanes, p.lanes = 0;
-        } else alone |= p.lanes, p.lanes = 0;
+            int b, together = kdrt__bit_count(p.lanes) >= KDRT__PACKET_MIN_LANES;
+            if (together) { /* the bounds are set where the setup found lanes */
+                for (b = 0; b < 3; ++b)
+                    together &= p.hi[b] - p.lo[b] <= KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]);
+                together &= p.hi[3] - p.lo[3] <= KDRT__PACKET_SPREAD && p.hi[4] - p.lo[4] <= KDRT__PACKET_SPREAD;
+                p.point = p.lo[0] == p.hi[0] && p.lo[1] == p.hi[1] && p.lo[2] == p.hi[2];
+            }
+            if (!together) alone |= p.lanes, p.lanes = 0;
+        }
         walked = p.lanes;
         if (walked) failures = 0;
         else if (++failures >= 2) skip = failures < 8 ? 1u << (failures - 2) : 64u;
@@ -4606,16 +4617,10 @@ static uint32_t kdrt__batch(const kdrt_tree *tree, const kdrt_ray *rays, uint32_
                             kdrt_hit *hits, uint8_t *occluded, int any_hit,
                             kdrt_traversal_stats *stats)
 {
-    uint32_t i, found = 0;
 #ifdef KDRT__AVX2
     if (tree->simd) return kdrt__batch_avx2(tree, rays, count, hits, occluded, any_hit, stats);
 #endif
-    for (i = 0; i < count; ++i) {
-        const int hit = kdrt__trace_alone(tree, &rays[i], any_hit ? NULL : &hits[i], stats);
-        if (any_hit) occluded[i] = (uint8_t)hit;
-        found += (uint32_t)hit;
-    }
-    return found;
+    return kdrt__batch_alone(tree, rays, count, any_hit ? NULL : hits, occluded, stats);
 }
 
 KDRT_API uint32_t kdrt_intersect_batch(const kdrt_tree *tree, const kdrt_ray *rays,
