@@ -53,8 +53,12 @@
      These three exist to measure the choice: the defaults are the measured best, and any value
      in range builds a valid tree, if not the same one. A value out of range stops the
      compilation with an #error.
-       KDRT_NO_SIMD              leave the AVX2 kernel and SSE2 binning out: every tree runs
-                                 the scalar kernel and is binned by scalar code (KERNELS)
+       KDRT_NO_SIMD              leave the AVX2 and AVX-512 kernels and SSE2 binning out:
+                                 every tree runs the scalar kernel and is binned by scalar code
+                                 (KERNELS)
+       KDRT_HEADER_FILENAME      the name this header is included by, in quotes (default
+                                 "kdrt.h"): the implementation includes itself once more for
+                                 each packet width (KERNELS); set it when the file is renamed
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -246,11 +250,12 @@
      kdrt_intersect_batch() and kdrt_occluded_batch() (and their scene forms) trace an array of
      rays, each answered exactly as the single-ray call answers it, every field of kdrt_hit (a
      miss's too), whatever the batch's size, order or content. With the AVX2 kernel, each 8
-     consecutive rays form a packet when their directions have no zero component and share
-     their signs and their largest axis, and their origins and directions lie close together: a
-     camera's rays in 4x2 or 4x4 pixel tiles, the shadow rays of those pixels to one light. The
-     packet walks the tree once: at each plane every lane takes the decision its own walk from
-     the root takes, all 8 at once; a leaf's triangles are culled for the whole packet (rigorous
+     consecutive rays form a packet (with the AVX-512 kernel each 16) when their directions have
+     no zero component and share their signs and their largest axis, and their origins and
+     directions lie close together: a camera's rays in 4x2 or 4x4 pixel tiles (4x4 for packets
+     of 16), the shadow rays of those pixels to one light. The packet walks the tree once: at
+     each plane every lane takes the decision its own walk from the root takes, all lanes at
+     once; a leaf's triangles are culled for the whole packet (rigorous
      bounds on what the watertight test computes for each ray), and each one left is tested
      against the packet's rays at once, with the test's own operations in each lane. Other rays
      go one by one: odd ones, incoherent groups (after groups that form no packet, the next ones
@@ -258,24 +263,30 @@
      their kdrt_hit.cell (kdrt_spawn_ray() sets one; a cell of 0 lets a ray into a packet). So do
      queries with flags, a filter or a mask to test, the scalar kernel's batches, and a scene's
      instances (its mesh tree walks in packets when every mesh's mask has every bit). Arrays are
-     contiguous, without a stride: the packets gather 8 rays at a time, and a caller whose rays
+     contiguous, without a stride: the packets gather 8 or 16 rays at a time, and a caller whose rays
      live in its own structures copies them into a kdrt_ray array for far less than tracing them
      costs. Nothing is allocated; any number of threads may call at once.
 
    KERNELS
-     A tree's queries run one of two kernels, chosen when it is built and kept in the tree (no
-     global state): the AVX2 kernel where the header was compiled for x86-64 by GCC or Clang
-     without KDRT_NO_SIMD and the CPU has AVX2 (checked by the build with
-     __builtin_cpu_supports), else the scalar kernel; KDRT_BUILD_SCALAR_KERNEL asks for the scalar
-     one, kdrt_tree_stats.kernel says which runs. No compiler flag is needed: the AVX2 functions
-     carry the per-function target attribute. Both walk the same tree and read the same 8-wide
-     leaf blocks; the AVX2 kernel tests a block's 8 triangles at once, with the scalar test's
-     operations in the same order and without FMA, so the two return the same answers bit for
-     bit (the tests compare them on 1.4 million rays). Before its exact watertight test, the
+     A tree's queries run one of three kernels, chosen when it is built and kept in the tree (no
+     global state): where the header was compiled for x86-64 by GCC or Clang without
+     KDRT_NO_SIMD, the AVX-512 kernel if the CPU has AVX-512 (AVX512F), else the AVX2 kernel if it
+     has AVX2 (checked by the build with __builtin_cpu_supports, which also asks whether the OS
+     saves the registers), else the scalar kernel; KDRT_BUILD_AVX2_KERNEL and
+     KDRT_BUILD_SCALAR_KERNEL ask for the narrower ones, kdrt_tree_stats.kernel says which runs.
+     The AVX-512 kernel is the AVX2 kernel with a batch's packets 16 rays wide; the packet code
+     is written once over the vector width, and the implementation includes the header again
+     (KDRT_HEADER_FILENAME) to compile it for 8 lanes and for 16. No compiler flag is needed: the
+     SIMD functions carry the per-function target attribute. All three walk the same tree and
+     read the same 8-wide leaf blocks; the AVX2 kernel tests a block's 8 triangles at once, with
+     the scalar test's operations in the same order and without FMA, so they return the same
+     answers bit for bit (the tests compare them on 1.4 million rays). Before its exact watertight test, the
      AVX2 kernel leaves a block early when float products already prove that the ray misses
      all 8 triangles: a filter that changes no answer. Where the compiler contracts multiply-adds
      into FMAs (-march=native with -ffp-contract=fast), each kernel keeps every guarantee above
-     but their last bits may differ. On MSVC and off x86-64 the scalar kernel runs. The SAH
+     but their last bits may differ (a batch's answers stay the single calls' in either case).
+     AVX-512 implies FMA, so its packet code names the rounding of each operation, which keeps
+     the compiler from fusing them. On MSVC and off x86-64 the scalar kernel runs. The SAH
      builder bins references with SSE2 (part of x86-64: no attribute needed), each lane rounding
      as the scalar code does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL bins with the
      scalar code too.
@@ -509,13 +520,19 @@ typedef enum kdrt_build_flags {
     /* Trace this tree with the scalar kernel even where the CPU has AVX2, and bin without SSE2
        (KERNELS): the tree and the answers are the same bit for bit, so this is for comparing the
        SIMD and scalar code and measuring them. */
-    KDRT_BUILD_SCALAR_KERNEL = 1u << 1
+    KDRT_BUILD_SCALAR_KERNEL = 1u << 1,
+    /* Trace this tree with the AVX2 kernel even where the CPU has AVX-512 (a batch's packets
+       then hold 8 rays, not 16): the answers are the same bit for bit; for comparing the two. */
+    KDRT_BUILD_AVX2_KERNEL = 1u << 2
 } kdrt_build_flags;
 
 /* The code that runs a tree's queries, chosen when it is built (KERNELS). */
 typedef enum kdrt_kernel {
     KDRT_KERNEL_SCALAR = 0, /* portable C */
-    KDRT_KERNEL_AVX2 = 1    /* x86-64 with AVX2: a leaf's triangles tested 8 at a time */
+    KDRT_KERNEL_AVX2 = 1,   /* x86-64 with AVX2: a leaf's triangles tested 8 at a time, a
+                               batch's rays walked in packets of 8 */
+    KDRT_KERNEL_AVX512 = 2  /* x86-64 with AVX-512: the AVX2 kernel's leaf tests, and a batch's
+                               rays walked in packets of 16 */
 } kdrt_kernel;
 
 /* Start from kdrt_default_build_options(). A zero field means its default, except
@@ -931,6 +948,12 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #if defined(KDRT_IMPLEMENTATION) && !defined(KDRT__IMPLEMENTED)
 #define KDRT__IMPLEMENTED
 
+/* The implementation includes this file again to compile its packet code for each vector width
+   (PACKETS): the name it is included by, beside the file that includes it. */
+#ifndef KDRT_HEADER_FILENAME
+#define KDRT_HEADER_FILENAME "kdrt.h"
+#endif
+
 /* ==== configuration: libc, KDRT_ASSERT, KDRT_MALLOC / KDRT_FREE ==== */
 
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
@@ -1044,6 +1067,7 @@ typedef struct kdrt__block {
 typedef char kdrt__block_is_5_cache_lines[sizeof(kdrt__block) == 320 ? 1 : -1];
 
 static int kdrt__cpu_has_avx2(void); /* 1 where the AVX2 kernel is compiled in and can run */
+static int kdrt__cpu_has_avx512(void); /* the same for the AVX-512 kernel */
 
 /* A leaf as the rope walk sees it (START CELLS): its box, the tree's bounds cut by its ancestors'
    splits, and its ropes, [2 * axis + side] the node across the face at lo[axis] (side 0) or
@@ -1074,7 +1098,7 @@ struct kdrt_tree {
     kdrt__part one;      /* kdrt_tree_build()'s mesh */
     int masks_full;      /* every part's mask has every bit: a ray's mask needs no test */
     int watertight;      /* options.intersector: 1 watertight, 0 fast (Moeller-Trumbore) */
-    int simd;            /* 1: the AVX2 kernel (KDRT_KERNEL_AVX2) */
+    int simd;            /* the kernel: 0 scalar, 1 AVX2, 2 AVX-512 (kdrt_kernel's values) */
     kdrt_allocator allocator;
     kdrt_aabb bounds;
     kdrt__node *nodes;
@@ -2845,7 +2869,8 @@ static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
         opt->intersector != KDRT_INTERSECTOR_WATERTIGHT &&
         opt->intersector != KDRT_INTERSECTOR_FAST)
         return KDRT_ERROR_INVALID_OPTION;
-    if (opt->flags & ~(uint32_t)(KDRT_BUILD_SKIP_INVALID_TRIANGLES | KDRT_BUILD_SCALAR_KERNEL))
+    if (opt->flags & ~(uint32_t)(KDRT_BUILD_SKIP_INVALID_TRIANGLES | KDRT_BUILD_SCALAR_KERNEL |
+                                 KDRT_BUILD_AVX2_KERNEL))
         return KDRT_ERROR_INVALID_OPTION;
     if ((opt->allocator.alloc == NULL) != (opt->allocator.free == NULL))
         return KDRT_ERROR_NULL_ARGUMENT;
@@ -2898,8 +2923,10 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt__mesh
     tree->masks_full = 1;
     for (i = 0; m && i < m->count; ++i) tree->masks_full &= m->parts[i].mask == 0xFFFFFFFFu;
     tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
-    tree->simd = !(opt->flags & KDRT_BUILD_SCALAR_KERNEL) && kdrt__cpu_has_avx2();
-    tree->stats.kernel = tree->simd ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR;
+    tree->simd = (opt->flags & KDRT_BUILD_SCALAR_KERNEL) || !kdrt__cpu_has_avx2() ? KDRT_KERNEL_SCALAR
+                 : !(opt->flags & KDRT_BUILD_AVX2_KERNEL) && kdrt__cpu_has_avx512() ? KDRT_KERNEL_AVX512
+                                                                                   : KDRT_KERNEL_AVX2;
+    tree->stats.kernel = (kdrt_kernel)tree->simd;
     tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
     return tree;
@@ -3528,6 +3555,8 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
 #define KDRT__AVX2 1
 #include <immintrin.h>
 #define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
+/* The AVX-512 kernel: the AVX2 kernel, and a batch's packets 16 rays wide (BATCHES). */
+#define KDRT__TARGET_AVX512 __attribute__((target("avx2,avx512f")))
 
 static int kdrt__cpu_has_avx2(void)
 {
@@ -3535,12 +3564,20 @@ static int kdrt__cpu_has_avx2(void)
     return __builtin_cpu_supports("avx2") != 0;
 }
 
+static int kdrt__cpu_has_avx512(void)
+{
+    __builtin_cpu_init(); /* also checks that the OS saves the AVX-512 registers */
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f");
+}
+
 /* What a block test found: the lanes whose triangles the ray meets (its return value, a bit a
    lane), their t, u, v, and front, a bit a lane set where the ray meets the front face. The block
    tests only find; the traversal decides (kdrt__accept_lanes), so that the tests, which most
-   blocks leave early, make no calls and save no registers. */
+   blocks leave early, make no calls and save no registers. A lane is a block's triangle, or a
+   packet's ray (up to KDRT__PACKET_MAX of them). */
+#define KDRT__PACKET_MAX 16u
 typedef struct kdrt__candidates {
-    float t[KDRT__LANES], u[KDRT__LANES], v[KDRT__LANES];
+    float t[KDRT__PACKET_MAX], u[KDRT__PACKET_MAX], v[KDRT__PACKET_MAX];
     unsigned front;
 } kdrt__candidates;
 
@@ -3561,84 +3598,13 @@ static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned
     return found;
 }
 
-/* The 8 lanes of a float vector as two vectors of 4 doubles (exact). */
-KDRT__TARGET_AVX2 static inline void kdrt__widen(__m256 x, __m256d out[2])
-{
-    out[0] = _mm256_cvtps_pd(_mm256_castps256_ps128(x));
-    out[1] = _mm256_cvtps_pd(_mm256_extractf128_ps(x, 1));
-}
-
-/* A filter in float before the exact edge functions: the lanes that surely have edge functions
-   of both signs, so that the exact test would reject them. An edge function a * b - c * d
-   is negative where a * b < c * d; rounding is monotone, so where float's products compare
-   a * b < c * d (or >), the exact ones do too. Equal float products (or a NaN from an overflow)
-   say nothing, and the exact test decides. The products are compared, not subtracted: a
-   compiler may fuse a * b - (c * d) into an FMA (-mfma -ffp-contract=fast), whose sign can be
-   wrong. So the filter changes no answer, only how soon most blocks are left. */
-KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__surely_missed_avx2(const __m256 x[3], const __m256 y[3])
-{
-    __m256 neg = _mm256_setzero_ps(), pos = _mm256_setzero_ps();
-    int k;
-    for (k = 0; k < 3; ++k) {
-        const int i = (k + 2) % 3, j = (k + 1) % 3; /* edge j-i, weight of corner k, as below */
-        const __m256 a = _mm256_mul_ps(x[i], y[j]), b = _mm256_mul_ps(y[i], x[j]);
-        neg = _mm256_or_ps(neg, _mm256_cmp_ps(a, b, _CMP_LT_OQ));
-        pos = _mm256_or_ps(pos, _mm256_cmp_ps(a, b, _CMP_GT_OQ));
-    }
-    return (unsigned)_mm256_movemask_ps(_mm256_and_ps(neg, pos));
-}
-
-/* The exact part of kdrt__intersect_watertight on 8 lanes of corners already moved to the ray's
-   origin and sheared (x, y, z: corner k's in each lane), for the lanes of lanes. A lane is a
-   triangle of a block against one ray (kdrt__block_watertight_avx2), or a triangle against a
-   ray of a packet (kdrt__packet_leaf_avx2): the same arithmetic either way. */
-KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__watertight_lanes_avx2(const __m256 fx[3],
-                                                                     const __m256 fy[3],
-                                                                     const __m256 fz[3],
-                                                                     unsigned lanes,
-                                                                     kdrt__candidates *c)
-{
-    const __m256d zero = _mm256_setzero_pd();
-    __m256d x[3][2], y[3][2], z[3][2];
-    unsigned mask = 0;
-    int k, h;
-    if ((kdrt__surely_missed_avx2(fx, fy) | ~lanes) == 0xFFFFFFFFu) return 0;
-    for (k = 0; k < 3; ++k) kdrt__widen(fx[k], x[k]), kdrt__widen(fy[k], y[k]), kdrt__widen(fz[k], z[k]);
-    {
-        __m256d e0[2], e1[2], e2[2], det[2];
-        for (h = 0; h < 2; ++h) {
-            __m256d neg, pos, keep;
-            e0[h] = _mm256_sub_pd(_mm256_mul_pd(x[2][h], y[1][h]), _mm256_mul_pd(y[2][h], x[1][h]));
-            e1[h] = _mm256_sub_pd(_mm256_mul_pd(x[0][h], y[2][h]), _mm256_mul_pd(y[0][h], x[2][h]));
-            e2[h] = _mm256_sub_pd(_mm256_mul_pd(x[1][h], y[0][h]), _mm256_mul_pd(y[1][h], x[0][h]));
-            neg = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(e0[h], zero, _CMP_LT_OQ),
-                                            _mm256_cmp_pd(e1[h], zero, _CMP_LT_OQ)),
-                               _mm256_cmp_pd(e2[h], zero, _CMP_LT_OQ));
-            pos = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(e0[h], zero, _CMP_GT_OQ),
-                                            _mm256_cmp_pd(e1[h], zero, _CMP_GT_OQ)),
-                               _mm256_cmp_pd(e2[h], zero, _CMP_GT_OQ));
-            det[h] = _mm256_add_pd(_mm256_add_pd(e0[h], e1[h]), e2[h]);
-            /* not (negative and positive), and det != 0 (unordered: NaN goes on, as in C) */
-            keep = _mm256_andnot_pd(_mm256_and_pd(neg, pos), _mm256_cmp_pd(det[h], zero, _CMP_NEQ_UQ));
-            mask |= (unsigned)_mm256_movemask_pd(keep) << (4 * h);
-        }
-        mask &= lanes;
-        if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
-        c->front = 0;
-        for (h = 0; h < 2; ++h) {
-            const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det[h]);
-            c->front |= (unsigned)_mm256_movemask_pd(_mm256_cmp_pd(det[h], zero, _CMP_GT_OQ))
-                        << (4 * h);
-            const __m256d num = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(e0[h], z[0][h]),
-                                                            _mm256_mul_pd(e1[h], z[1][h])),
-                                              _mm256_mul_pd(e2[h], z[2][h]));
-            _mm_storeu_ps(c->t + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(num, inv_det)));
-            _mm_storeu_ps(c->u + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e1[h], inv_det)));
-            _mm_storeu_ps(c->v + 4 * h, _mm256_cvtpd_ps(_mm256_mul_pd(e2[h], inv_det)));
-        }
-    }
-    return mask;
-}
+/* kdrt__surely_missed_avx2 and kdrt__watertight_lanes_avx2: the exact test on 8 lanes, written
+   once for 8 and 16 (PACKETS, at the end of this file). */
+#define KDRT__PACKET_WIDTH 8
+#define KDRT__PACKET_PARTS 1
+#include KDRT_HEADER_FILENAME
+#undef KDRT__PACKET_WIDTH
+#undef KDRT__PACKET_PARTS
 
 /* kdrt__intersect_watertight on a block's 8 lanes. */
 KDRT__TARGET_AVX2 static unsigned kdrt__block_watertight_avx2(const kdrt__block *block,
@@ -3707,6 +3673,7 @@ KDRT__TARGET_AVX2 static unsigned kdrt__block_fast_avx2(const kdrt__block *block
 }
 #else
 static int kdrt__cpu_has_avx2(void) { return 0; }
+static int kdrt__cpu_has_avx512(void) { return 0; }
 #endif
 
 /* ==== traversal ==== */
@@ -4112,21 +4079,39 @@ KDRT__NOINLINE static int kdrt__walk_alone(const kdrt_tree *tree, uint32_t hint,
                    : kdrt__walk_ray(tree, hint, s, t0, t1, best, 0, 0, stats);
 }
 
-/* A packet (AVX2 kernel): up to 8 consecutive rays of a batch whose directions have no zero or
-   tiny component and share their signs and their largest axis, so that at every split plane
+/* The block test and the leaf test of the single-ray walk, out of line for the packets: inlined
+   into the AVX-512 code, their multiplies and adds could be fused into FMAs (AVX-512 implies
+   FMA), and their answers would no longer be the single-ray walk's. */
+KDRT__NOINLINE KDRT__TARGET_AVX2 static unsigned kdrt__block_test_apart(const kdrt__block *block,
+                                                                       const kdrt__ray_setup *s,
+                                                                       kdrt__candidates *c)
+{
+    return kdrt__block_watertight_avx2(block, s, c);
+}
+
+KDRT__NOINLINE static int kdrt__test_leaf_apart(const kdrt_tree *tree, const kdrt__node *n,
+                                                const kdrt__ray_setup *s, kdrt_hit *best,
+                                                int any_hit, kdrt_traversal_stats *stats)
+{
+    return kdrt__test_leaf(tree, n, s, best, any_hit, 0, NULL, stats);
+}
+
+/* A packet (AVX2 and AVX-512 kernels): up to 8 or 16 consecutive rays of a batch whose
+   directions have no zero or tiny component and share their signs and their largest axis, so
+   that at every split plane
    they take its sides in the same order and the watertight test shears them alike. Each lane
    keeps its own setup, range and best hit, and takes at every node the decision kdrt__descend
    takes for it alone, so each visits the leaves its own walk from the root visits, in the same
    order, and gets the same answer bit for bit; the packet only shares the way. */
 typedef struct kdrt__packet {
-    kdrt__ray_setup s[KDRT__LANES];
-    float org[3][KDRT__LANES], inv_dir[3][KDRT__LANES]; /* the lanes' s, axis by axis */
-    float shear[3][KDRT__LANES]; /* the lanes' shear_x, _y, _z */
-    float bound[KDRT__LANES];    /* the best hit's t so far, or the range's end */
-    kdrt_hit *best[KDRT__LANES];
-    uint32_t hit_cell[KDRT__LANES]; /* as kdrt__walk_ray's hit_cell */
+    kdrt__ray_setup s[KDRT__PACKET_MAX];
+    float org[3][KDRT__PACKET_MAX], inv_dir[3][KDRT__PACKET_MAX]; /* the lanes' s, axis by axis */
+    float shear[3][KDRT__PACKET_MAX]; /* the lanes' shear_x, _y, _z */
+    float bound[KDRT__PACKET_MAX];    /* the best hit's t so far, or the range's end */
+    kdrt_hit *best[KDRT__PACKET_MAX];
+    uint32_t hit_cell[KDRT__PACKET_MAX]; /* as kdrt__walk_ray's hit_cell */
     /* Watertight tree: the leaves are tested triangle by triangle against the packet
-       (kdrt__packet_leaf_avx2), within the bounds over the lanes of their origins' kx, ky, kz
+       (kdrt__packet_leaf), within the bounds over the lanes of their origins' kx, ky, kz
        (lo[0..3), hi[0..3)) and of their shear_x, shear_y (lo[3..5), hi[3..5)). */
     int sheared, kx, ky, kz;
     float lo[5], hi[5];
@@ -4136,13 +4121,6 @@ typedef struct kdrt__packet {
     unsigned alone;    /* lanes handed back to the single-ray walk (kdrt__packet_walk) */
     unsigned found;    /* any_hit: lanes that found one */
 } kdrt__packet;
-
-/* A node for later, with the lanes that visit it and their ranges there. */
-typedef struct kdrt__packet_todo {
-    __m256 t0, t1;
-    uint32_t node;
-    unsigned lanes;
-} kdrt__packet_todo;
 
 /* One axis of one corner of kdrt__packet_culled_avx2: folds into *above and *below the lanes
    whose corner lies surely on that side of every ray. point: the lanes share their origin
@@ -4211,299 +4189,12 @@ KDRT__TARGET_AVX2 static KDRT__FORCEINLINE unsigned kdrt__packet_culled_avx2(con
         _mm256_or_ps(_mm256_or_ps(above_x, below_x), _mm256_or_ps(above_y, below_y)));
 }
 
-/* One leaf for the lanes of lanes of a sheared packet (kdrt__packet.sheared): the triangles no
-   cull rules out, each against the lanes' rays at once, with kdrt__intersect_watertight's
-   arithmetic in each lane; each lane's hits taken as its own walk takes them. Returns the lanes
-   that found one when any_hit. */
-KDRT__TARGET_AVX2 static unsigned kdrt__packet_leaf_avx2(const kdrt_tree *tree, const kdrt__node *n,
-                                                         kdrt__packet *p, unsigned lanes,
-                                                         int any_hit, kdrt_traversal_stats *stats)
-{
-    const uint32_t first = n->u.first, count = kdrt__node_count(n);
-    const int kx = p->kx, ky = p->ky, kz = p->kz;
-    const __m256 ox = _mm256_loadu_ps(p->org[kx]), oy = _mm256_loadu_ps(p->org[ky]);
-    const __m256 oz = _mm256_loadu_ps(p->org[kz]);
-    const __m256 sx = _mm256_loadu_ps(p->shear[0]), sy = _mm256_loadu_ps(p->shear[1]);
-    const __m256 sz = _mm256_loadu_ps(p->shear[2]);
-    unsigned found = 0;
-    uint32_t i;
-    for (i = 0; i < count; i += KDRT__LANES) {
-        const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
-        /* the block's own triangles: a last block's copies of its last one repeat its answer */
-        unsigned triangles = count - i < KDRT__LANES ? (1u << (count - i)) - 1u : 0xFFu;
-        triangles &= ~(p->point ? kdrt__packet_culled_avx2(block, p, 1) : kdrt__packet_culled_avx2(block, p, 0));
-        KDRT__COUNT(stats, packet_blocks, 1);
-        if (kdrt__bit_count(triangles) > kdrt__bit_count(lanes)) {
-            /* More triangles left than rays: each ray's test of the block costs less. */
-            unsigned left;
-            for (left = lanes; left; left &= left - 1u) {
-                const unsigned lane = (unsigned)__builtin_ctz(left);
-                kdrt__candidates c;
-                const unsigned mask = kdrt__block_watertight_avx2(block, &p->s[lane], &c);
-                KDRT__COUNT(stats, block_tests, 1);
-                if (!mask || !kdrt__accept_lanes(p->best[lane], block, mask, &c, &p->s[lane], 0))
-                    continue;
-                p->bound[lane] = p->best[lane]->t;
-                if (any_hit) found |= 1u << lane, lanes &= ~(1u << lane);
-            }
-            if (!lanes) return found;
-            continue;
-        }
-        for (; triangles; triangles &= triangles - 1u) {
-            const unsigned j = (unsigned)__builtin_ctz(triangles), id = block->id[j];
-            __m256 fx[3], fy[3], fz[3];
-            KDRT__COUNT(stats, packet_triangles, 1);
-            kdrt__candidates c;
-            unsigned hits;
-            int k;
-            for (k = 0; k < 3; ++k) {
-                const __m256 dx = _mm256_sub_ps(_mm256_set1_ps(block->corner[3 * k + kx][j]), ox);
-                const __m256 dy = _mm256_sub_ps(_mm256_set1_ps(block->corner[3 * k + ky][j]), oy);
-                const __m256 dz = _mm256_sub_ps(_mm256_set1_ps(block->corner[3 * k + kz][j]), oz);
-                fx[k] = _mm256_sub_ps(dx, _mm256_mul_ps(sx, dz));
-                fy[k] = _mm256_sub_ps(dy, _mm256_mul_ps(sy, dz));
-                fz[k] = _mm256_mul_ps(sz, dz);
-            }
-            for (hits = kdrt__watertight_lanes_avx2(fx, fy, fz, lanes, &c); hits; hits &= hits - 1u) {
-                const unsigned lane = (unsigned)__builtin_ctz(hits);
-                kdrt_hit *best = p->best[lane];
-                if (!kdrt__accept(best, id, c.t[lane], c.u[lane], c.v[lane], &p->s[lane])) continue;
-                p->bound[lane] = best->t;
-                if (any_hit) found |= 1u << lane, lanes &= ~(1u << lane);
-            }
-            if (!lanes) return found;
-        }
-    }
-    return found;
-}
-
-/* The packet's walk from the root: kdrt__walk_ray's walk from the root for each lane, the lanes
-   that visit the same node at once. At a plane each lane takes kdrt__descend's decision, with its
-   operations, so the same one: near only, far only, both (near, the first, up to the plane, far
-   from it), or the origin on the plane (far, then the first, up to t = 0, near over the whole
-   range). The children are visited in the packet's order, the side the rays come from first; a
-   lane whose origin lies off the plane at a distance that rounds to t = 0 would visit them the
-   other way round: it goes back to the single-ray walk. Inlined twice, so that any_hit is a
-   constant. */
-KDRT__TARGET_AVX2 static KDRT__FORCEINLINE void kdrt__packet_walk(const kdrt_tree *tree,
-                                                                  kdrt__packet *p, __m256 t0,
-                                                                  __m256 t1, int any_hit,
-                                                                  kdrt_traversal_stats *stats)
-{
-    kdrt__packet_todo stack[KDRT_MAX_DEPTH];
-    const __m256 zero = _mm256_setzero_ps();
-    const __m256 below_slack = _mm256_set1_ps(1.0f - KDRT__T_SLACK);
-    const __m256 above_slack = _mm256_set1_ps(1.0f + KDRT__T_SLACK);
-    uint32_t sp = 0, node = 0;
-    unsigned lanes = p->lanes;
-    for (;;) {
-        const kdrt__node *n = &tree->nodes[node];
-        if (!kdrt__node_is_leaf(n)) {
-            const uint32_t axis = kdrt__node_axis(n);
-            const int negative = (int)((p->negative >> axis) & 1u);
-            const __m256 split = _mm256_set1_ps(n->u.split), o = _mm256_loadu_ps(p->org[axis]);
-            const __m256 t_split = _mm256_mul_ps(_mm256_sub_ps(split, o), _mm256_loadu_ps(p->inv_dir[axis]));
-            const __m256 lo = _mm256_mul_ps(t_split, below_slack);
-            const __m256 hi = _mm256_mul_ps(t_split, above_slack);
-            const __m256 near_first = negative ? _mm256_cmp_ps(o, split, _CMP_GT_OQ)
-                                               : _mm256_cmp_ps(o, split, _CMP_LT_OQ);
-            const __m256 on_plane = _mm256_and_ps(_mm256_cmp_ps(t_split, zero, _CMP_EQ_OQ),
-                                                  _mm256_cmp_ps(t0, zero, _CMP_LE_OQ));
-            const __m256 near_only = _mm256_andnot_ps(
-                on_plane, _mm256_or_ps(_mm256_cmp_ps(t_split, zero, _CMP_LE_OQ), _mm256_cmp_ps(lo, t1, _CMP_GT_OQ)));
-            const __m256 far_only = _mm256_andnot_ps(_mm256_or_ps(on_plane, near_only),
-                                                     _mm256_cmp_ps(hi, t0, _CMP_LT_OQ));
-            const __m256 one_side = _mm256_or_ps(near_only, far_only);
-            /* near only and near first, or far only and far first: the first child alone */
-            const unsigned first_only = (unsigned)_mm256_movemask_ps(
-                _mm256_and_ps(one_side, _mm256_xor_ps(near_first, far_only)));
-            const unsigned one = (unsigned)_mm256_movemask_ps(one_side);
-            const unsigned retire = lanes & (unsigned)_mm256_movemask_ps(_mm256_and_ps(on_plane, near_first));
-            const unsigned live = lanes & ~retire;
-            const unsigned first = live & (~one | first_only), second = live & (~one | ~first_only);
-            const uint32_t below = node + 1, above = kdrt__node_above(n);
-            KDRT__COUNT(stats, packet_steps, 1);
-            KDRT__COUNT(stats, packet_step_lanes, (uint64_t)kdrt__bit_count(lanes));
-            if (retire) p->alone |= retire, p->lanes &= ~retire;
-            if (first && second) {
-                /* both, from the plane on (the origin on the plane: over the whole range) */
-                const __m256 both = _mm256_andnot_ps(_mm256_or_ps(one_side, on_plane), _mm256_cmp_ps(zero, zero, _CMP_EQ_OQ));
-                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
-                stack[sp].t0 = _mm256_blendv_ps(t0, lo, both), stack[sp].t1 = t1;
-                stack[sp].node = negative ? below : above, stack[sp].lanes = second, ++sp;
-                t1 = _mm256_blendv_ps(_mm256_blendv_ps(t1, hi, both), zero, on_plane);
-                node = negative ? above : below, lanes = first;
-                continue;
-            }
-            if (first) {
-                node = negative ? above : below, lanes = first;
-                continue;
-            }
-            if (second) {
-                node = negative ? below : above, lanes = second;
-                continue;
-            }
-        } else {
-            unsigned lane, cells;
-            KDRT__COUNT(stats, packet_leaves, 1);
-            if (p->sheared) {
-                const unsigned found = kdrt__packet_leaf_avx2(tree, n, p, lanes, any_hit, stats);
-                p->found |= found, p->lanes &= ~found, lanes &= ~found;
-            } else {
-                for (cells = lanes; cells; cells &= cells - 1u) {
-                    lane = (unsigned)__builtin_ctz(cells);
-                    if (kdrt__test_leaf(tree, n, &p->s[lane], p->best[lane], any_hit, 0, NULL, stats)) {
-                        p->found |= 1u << lane, p->lanes &= ~(1u << lane);
-                        continue;
-                    }
-                    p->bound[lane] = p->best[lane]->t;
-                }
-            }
-            if (!any_hit) /* the lanes whose best hit so far may lie here */
-                for (cells = lanes & (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(
-                                         _mm256_loadu_ps(p->bound), t1, _CMP_LE_OQ));
-                     cells; cells &= cells - 1u)
-                    p->hit_cell[__builtin_ctz(cells)] = node;
-        }
-        /* Next node, with the lanes still walking that start it no later than their best hit. */
-        for (;;) {
-            if (sp == 0) return;
-            --sp;
-            lanes = stack[sp].lanes & p->lanes &
-                    ~(unsigned)_mm256_movemask_ps(_mm256_cmp_ps(stack[sp].t0, _mm256_loadu_ps(p->bound), _CMP_GT_OQ));
-            if (lanes) break;
-        }
-        node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
-    }
-}
-
-KDRT__TARGET_AVX2 static void kdrt__packet_walk_avx2(const kdrt_tree *tree, kdrt__packet *p,
-                                                     const float t0[KDRT__LANES],
-                                                     const float t1[KDRT__LANES], int any_hit,
-                                                     kdrt_traversal_stats *stats)
-{
-    KDRT__COUNT(stats, packets, 1);
-    KDRT__COUNT(stats, packet_lanes, (uint64_t)kdrt__bit_count(p->lanes));
-    if (any_hit) kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 1, stats);
-    else kdrt__packet_walk(tree, p, _mm256_loadu_ps(t0), _mm256_loadu_ps(t1), 0, stats);
-}
-
 typedef char kdrt__ray_is_9_floats[sizeof(kdrt_ray) == 9 * sizeof(float) ? 1 : -1];
 
 /* 1 where lanes of bits agree with the lane first: the movemask bits of one test. */
 static unsigned kdrt__same_bit(unsigned bits, unsigned first)
 {
-    return (bits >> first) & 1u ? bits : ~bits & 0xFFu;
-}
-
-/* kdrt__setup_ray and kdrt__clip_to_box for 8 rays at once, with their operations, so with their
-   results, for the lanes that can walk as a packet: finite, no zero component, a range that
-   meets the tree's box, and for the nearest hit no start cell. Of those, the lanes that share
-   the first one's direction signs and largest axis are returned, set up in p (s, org, inv_dir,
-   shear, bound, kx, ky, kz, negative) and t0, t1; the others are set up ray by ray. */
-KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
-                                                          const kdrt_ray *rays, kdrt__packet *p,
-                                                          float t0[KDRT__LANES],
-                                                          float t1[KDRT__LANES], int any_hit)
-{
-    const float *base = (const float *)(const void *)rays;
-    const __m256i stride = _mm256_setr_epi32(0, 9, 18, 27, 36, 45, 54, 63);
-    const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-    const __m256 sign = _mm256_set1_ps(-0.0f);
-    __m256 o[3], d[3], inv[3], abs_d[3], ok, tmin, tmax, enter, exit, kz1, kz2;
-    float dirs[3][KDRT__LANES], tmins[KDRT__LANES];
-    unsigned lanes, negative[3], first, left;
-    int a;
-    ok = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-    for (a = 0; a < 3; ++a) {
-        o[a] = _mm256_i32gather_ps(base + a, stride, 4);
-        d[a] = _mm256_i32gather_ps(base + 4 + a, stride, 4);
-        inv[a] = _mm256_div_ps(one, d[a]);
-        abs_d[a] = _mm256_andnot_ps(sign, d[a]);
-        /* finite origin and direction, no zero component, a finite inverse */
-        ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_sub_ps(o[a], o[a]), zero, _CMP_EQ_OQ));
-        ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_sub_ps(d[a], d[a]), zero, _CMP_EQ_OQ));
-        ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_sub_ps(inv[a], inv[a]), zero, _CMP_EQ_OQ));
-        ok = _mm256_and_ps(ok, _mm256_cmp_ps(d[a], zero, _CMP_NEQ_OQ));
-        negative[a] = (unsigned)_mm256_movemask_ps(d[a]);
-    }
-    tmin = _mm256_i32gather_ps(base + 3, stride, 4);
-    tmax = _mm256_i32gather_ps(base + 7, stride, 4);
-    ok = _mm256_and_ps(ok, _mm256_cmp_ps(tmin, tmin, _CMP_ORD_Q)); /* a NaN tmin: no hit */
-    tmin = _mm256_and_ps(tmin, _mm256_cmp_ps(tmin, zero, _CMP_GT_OQ)); /* -0 and below give +0 */
-    ok = _mm256_and_ps(ok, _mm256_cmp_ps(tmin, tmax, _CMP_LE_OQ));
-    if (!any_hit) /* a start cell: the ray takes its rope walk */
-        ok = _mm256_and_ps(ok, _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-                                   _mm256_castps_si256(_mm256_i32gather_ps(base + 8, stride, 4)),
-                                   _mm256_setzero_si256())));
-    enter = tmin, exit = tmax;
-    for (a = 0; a < 3; ++a) {
-        const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(tree->bounds.min[a]), o[a]), inv[a]);
-        const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(tree->bounds.max[a]), o[a]), inv[a]);
-        const __m256 a_first = _mm256_cmp_ps(ta, tb, _CMP_LT_OQ);
-        const __m256 tnear = _mm256_mul_ps(_mm256_blendv_ps(tb, ta, a_first), _mm256_set1_ps(1.0f - KDRT__T_SLACK));
-        const __m256 tfar = _mm256_mul_ps(_mm256_blendv_ps(ta, tb, a_first), _mm256_set1_ps(1.0f + KDRT__T_SLACK));
-        enter = _mm256_blendv_ps(enter, tnear, _mm256_cmp_ps(tnear, enter, _CMP_GT_OQ));
-        exit = _mm256_blendv_ps(exit, tfar, _mm256_cmp_ps(tfar, exit, _CMP_LT_OQ));
-    }
-    ok = _mm256_and_ps(ok, _mm256_cmp_ps(enter, exit, _CMP_LE_OQ));
-    lanes = (unsigned)_mm256_movemask_ps(ok);
-    if (!lanes) return 0;
-    /* kz, the first axis of the largest |dir| (kdrt__setup_ray's): 1 where kz1 and not kz2, 2 where kz2 */
-    kz1 = _mm256_cmp_ps(abs_d[1], abs_d[0], _CMP_GT_OQ);
-    kz2 = _mm256_cmp_ps(abs_d[2], _mm256_blendv_ps(abs_d[0], abs_d[1], kz1), _CMP_GT_OQ);
-    first = (unsigned)__builtin_ctz(lanes);
-    {
-        const unsigned m1 = (unsigned)_mm256_movemask_ps(kz1), m2 = (unsigned)_mm256_movemask_ps(kz2);
-        lanes &= kdrt__same_bit(negative[0], first) & kdrt__same_bit(negative[1], first) &
-                 kdrt__same_bit(negative[2], first) & kdrt__same_bit(m1, first) &
-                 kdrt__same_bit(m2, first);
-        p->kz = (m2 >> first) & 1u ? 2 : (m1 >> first) & 1u ? 1 : 0;
-    }
-    p->negative = ((negative[0] >> first) & 1u) | ((negative[1] >> first) & 1u) << 1 |
-                  ((negative[2] >> first) & 1u) << 2;
-    p->kx = (p->kz + 1) % 3, p->ky = (p->kx + 1) % 3;
-    if ((p->negative >> p->kz) & 1u) { const int k = p->kx; p->kx = p->ky, p->ky = k; }
-    _mm256_storeu_ps(t0, enter), _mm256_storeu_ps(t1, exit);
-    _mm256_storeu_ps(p->bound, tmax);
-    for (a = 0; a < 3; ++a) {
-        _mm256_storeu_ps(p->org[a], o[a]), _mm256_storeu_ps(p->inv_dir[a], inv[a]);
-        _mm256_storeu_ps(dirs[a], d[a]);
-    }
-    _mm256_storeu_ps(p->shear[0], _mm256_div_ps(d[p->kx], d[p->kz]));
-    _mm256_storeu_ps(p->shear[1], _mm256_div_ps(d[p->ky], d[p->kz]));
-    _mm256_storeu_ps(p->shear[2], _mm256_div_ps(one, d[p->kz]));
-    _mm256_storeu_ps(tmins, tmin);
-    {
-        /* the bounds over the packet's lanes of their origins' kx, ky, kz and shears */
-        const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        const __m256 in = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-            _mm256_and_si256(_mm256_set1_epi32((int)lanes), bit), bit));
-        const __m256 x[5] = {o[p->kx], o[p->ky], o[p->kz], _mm256_loadu_ps(p->shear[0]),
-                             _mm256_loadu_ps(p->shear[1])};
-        for (a = 0; a < 5; ++a) {
-            __m256 lo = _mm256_blendv_ps(_mm256_set1_ps(INFINITY), x[a], in);
-            __m256 hi = _mm256_blendv_ps(_mm256_set1_ps(-INFINITY), x[a], in);
-            lo = _mm256_min_ps(lo, _mm256_permute2f128_ps(lo, lo, 1));
-            hi = _mm256_max_ps(hi, _mm256_permute2f128_ps(hi, hi, 1));
-            lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0x4E));
-            hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0x4E));
-            lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0xB1));
-            hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0xB1));
-            p->lo[a] = _mm256_cvtss_f32(lo), p->hi[a] = _mm256_cvtss_f32(hi);
-        }
-    }
-    for (left = lanes; left; left &= left - 1u) {
-        const unsigned lane = (unsigned)__builtin_ctz(left);
-        kdrt__ray_setup *s = &p->s[lane];
-        for (a = 0; a < 3; ++a)
-            s->org[a] = p->org[a][lane], s->dir[a] = dirs[a][lane], s->inv_dir[a] = p->inv_dir[a][lane];
-        s->tmin = tmins[lane], s->tmax = p->bound[lane];
-        s->list = NULL, s->rules = NULL;
-        s->kx = p->kx, s->ky = p->ky, s->kz = p->kz;
-        s->shear_x = p->shear[0][lane], s->shear_y = p->shear[1][lane], s->shear_z = p->shear[2][lane];
-    }
-    return lanes;
+    return (bits >> first) & 1u ? bits : ~bits;
 }
 
 /* Fewer rays than this in a packet go one by one: they share few steps, and a packet of two
@@ -4513,96 +4204,28 @@ KDRT__TARGET_AVX2 static unsigned kdrt__packet_setup_avx2(const kdrt_tree *tree,
    shears span more than this, goes one by one: its rays part ways soon. */
 #define KDRT__PACKET_SPREAD 0.0625f
 
-/* kdrt__batch with the AVX2 kernel: 8 rays at a time, as a packet where they can be one. */
-KDRT__TARGET_AVX2 static uint32_t kdrt__batch_avx2(const kdrt_tree *tree, const kdrt_ray *rays,
-                                                   uint32_t count, kdrt_hit *hits,
-                                                   uint8_t *occluded, int any_hit,
-                                                   kdrt_traversal_stats *stats)
+/* Whether p's lanes walk together: enough of them, their origins and shears close. */
+static int kdrt__packet_together(const kdrt_tree *tree, const kdrt__packet *p)
 {
-    kdrt__packet p;
-    kdrt_hit scratch[KDRT__LANES]; /* any_hit: the walk's hits, unused after */
-    kdrt_ray last[KDRT__LANES];    /* the last rays, when fewer than 8, and copies of the last */
-    uint32_t i, found = 0, skip = 0, failures = 0;
-    for (i = 0; i < count; i += KDRT__LANES) {
-        const uint32_t n = count - i < KDRT__LANES ? count - i : KDRT__LANES;
-        const kdrt_ray *group = rays + i;
-        float t0[KDRT__LANES], t1[KDRT__LANES];
-        unsigned lane, left, walked, alone;
-        if (skip || n < KDRT__PACKET_MIN_LANES) {
-            /* Incoherent rays: after packets that did not form, the next groups go straight
-               to the single-ray walk, a group more each time (up to 64), before trying again.
-               So do groups too small for a packet (a batch of one ray: its single call). */
-            if (skip) --skip;
-            found += any_hit ? kdrt__batch_alone(tree, rays + i, n, NULL, occluded + i, stats)
-                             : kdrt__batch_alone(tree, rays + i, n, hits + i, NULL, stats);
-            continue;
-        }
-        if (n < KDRT__LANES) {
-            for (lane = 0; lane < KDRT__LANES; ++lane) last[lane] = rays[i + (lane < n ? lane : n - 1u)];
-            group = last;
-        }
-        p.lanes = kdrt__packet_setup_avx2(tree, group, &p, t0, t1, any_hit) & ((1u << n) - 1u);
-        /* The other rays' setup is SSE code: run with AVX's upper halves dirty, each of its
-           instructions waits on them (GCC inserts no vzeroupper before these calls). */
-        _mm256_zeroupper();
-        p.alone = p.found = 0;
-        p.sheared = tree->watertight;
-        alone = 0;
-        for (lane = 0; lane < n; ++lane) {
-            kdrt_hit *best = any_hit ? &scratch[lane] : &hits[i + lane];
-            p.best[lane] = best;
-            kdrt__miss(best);
-            if (!((p.lanes >> lane) & 1u)) {
-                /* not in the packet: set up alone, a miss or a ray of its own */
-                kdrt__ray_setup *s = &p.s[lane];
-                if (!kdrt__setup_ray(&group[lane], s) ||
-                    !kdrt__clip_to_box(&tree->bounds, s, &t0[lane], &t1[lane]))
-                    continue;
-                alone |= 1u << lane;
-            }
-            best->t = p.s[lane].tmax;
-            p.hit_cell[lane] = 0;
-        }
-        {
-            /* Too few lanes, or rays that part ways soon, share few steps: they go one by one. */
-            const int axis[3] = {p.kx, p.ky, p.kz};
-            int b, together = kdrt__bit_count(p.lanes) >= KDRT__PACKET_MIN_LANES;
-            if (together) { /* the bounds are set where the setup found lanes */
-                for (b = 0; b < 3; ++b)
-                    together &= p.hi[b] - p.lo[b] <= KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]);
-                together &= p.hi[3] - p.lo[3] <= KDRT__PACKET_SPREAD && p.hi[4] - p.lo[4] <= KDRT__PACKET_SPREAD;
-                p.point = p.lo[0] == p.hi[0] && p.lo[1] == p.hi[1] && p.lo[2] == p.hi[2];
-            }
-            if (!together) alone |= p.lanes, p.lanes = 0;
-        }
-        walked = p.lanes;
-        if (walked) failures = 0;
-        else if (++failures >= 2) skip = failures < 8 ? 1u << (failures - 2) : 64u;
-        if (walked) kdrt__packet_walk_avx2(tree, &p, t0, t1, any_hit, stats);
-        walked &= ~p.alone;
-        for (left = p.alone; left; left &= left - 1u) { /* handed back during the walk: anew */
-            const unsigned l = (unsigned)__builtin_ctz(left);
-            kdrt__miss(p.best[l]);
-            p.best[l]->t = p.s[l].tmax;
-        }
-        alone |= p.alone;
-        for (lane = 0; lane < n; ++lane) {
-            const unsigned bit = 1u << lane;
-            int hit;
-            if (alone & bit)
-                hit = kdrt__walk_alone(tree, group[lane].cell, &p.s[lane], t0[lane], t1[lane],
-                                       p.best[lane], any_hit, stats);
-            else if (any_hit) hit = (p.found & bit) != 0;
-            else {
-                hit = p.best[lane]->triangle != KDRT_INVALID_ID;
-                if (hit && (walked & bit)) p.best[lane]->cell = p.hit_cell[lane];
-            }
-            if (any_hit) occluded[i + lane] = (uint8_t)hit;
-            found += (uint32_t)hit;
-        }
-    }
-    return found;
+    const int axis[3] = {p->kx, p->ky, p->kz};
+    int b, together = kdrt__bit_count(p->lanes) >= KDRT__PACKET_MIN_LANES;
+    if (!together) return 0; /* and the bounds are set where the setup found lanes */
+    for (b = 0; b < 3; ++b)
+        together &= p->hi[b] - p->lo[b] <= KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]);
+    return together && p->hi[3] - p->lo[3] <= KDRT__PACKET_SPREAD && p->hi[4] - p->lo[4] <= KDRT__PACKET_SPREAD;
 }
+
+/* kdrt__batch_avx2 and kdrt__batch_avx512, and their packet walks (PACKETS). */
+#define KDRT__PACKET_WIDTH 8
+#define KDRT__PACKET_PARTS 2
+#include KDRT_HEADER_FILENAME
+#undef KDRT__PACKET_WIDTH
+#undef KDRT__PACKET_PARTS
+#define KDRT__PACKET_WIDTH 16
+#define KDRT__PACKET_PARTS 3
+#include KDRT_HEADER_FILENAME
+#undef KDRT__PACKET_WIDTH
+#undef KDRT__PACKET_PARTS
 #endif
 
 /* Whether query lets every hit of tree count, so that the plain walk answers it. */
@@ -4618,7 +4241,10 @@ static uint32_t kdrt__batch(const kdrt_tree *tree, const kdrt_ray *rays, uint32_
                             kdrt_traversal_stats *stats)
 {
 #ifdef KDRT__AVX2
-    if (tree->simd) return kdrt__batch_avx2(tree, rays, count, hits, occluded, any_hit, stats);
+    if (tree->simd == KDRT_KERNEL_AVX512)
+        return kdrt__batch_avx512(tree, rays, count, hits, occluded, any_hit, stats);
+    if (tree->simd == KDRT_KERNEL_AVX2)
+        return kdrt__batch_avx2(tree, rays, count, hits, occluded, any_hit, stats);
 #endif
     return kdrt__batch_alone(tree, rays, count, any_hit ? NULL : hits, occluded, stats);
 }
@@ -5783,6 +5409,641 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 }
 #endif
 #endif /* KDRT_IMPLEMENTATION */
+
+/* ==== packets: the code written once over the vector width ==== */
+
+/* The lanes' exact test and the packet walk, for 8 lanes (the AVX2 kernel: its block tests and
+   its 8-ray packets) and for 16 (the AVX-512 kernel's 16-ray packets). C has no templates, so,
+   as stb_image_resize2.h does for its loops, kdrt.h includes itself (KDRT_HEADER_FILENAME) with
+   KDRT__PACKET_WIDTH set, and this part alone is compiled again: each name through KDRT__W()
+   ends in _avx2 or _avx512, each vector operation is a kdrt__v_ macro of that width. Parts
+   (KDRT__PACKET_PARTS): 1 the lanes' test, 2 the packets. */
+#if defined(KDRT__PACKET_WIDTH)
+
+#if KDRT__PACKET_WIDTH == 8
+#define KDRT__W(name) name##_avx2
+#define KDRT__W_TARGET KDRT__TARGET_AVX2
+#define kdrt__v __m256                 /* W floats */
+#define kdrt__vm __m256                /* W lanes' truth: all bits set or clear */
+#define kdrt__vd __m256d               /* W / 2 doubles */
+#define kdrt__vdm __m256d
+#define kdrt__v_set1(x) _mm256_set1_ps(x)
+#define kdrt__v_zero() _mm256_setzero_ps()
+#define kdrt__v_load(p) _mm256_loadu_ps(p)
+#define kdrt__v_store(p, x) _mm256_storeu_ps(p, x)
+#define kdrt__v_add(a, b) _mm256_add_ps(a, b)
+#define kdrt__v_sub(a, b) _mm256_sub_ps(a, b)
+#define kdrt__v_mul(a, b) _mm256_mul_ps(a, b)
+#define kdrt__v_div(a, b) _mm256_div_ps(a, b)
+#define kdrt__v_abs(a) _mm256_andnot_ps(_mm256_set1_ps(-0.0f), a)
+#define kdrt__v_cmp(a, b, predicate) _mm256_cmp_ps(a, b, predicate)
+#define kdrt__v_blend(a, b, m) _mm256_blendv_ps(a, b, m) /* b where m, else a */
+#define kdrt__v_gather(base, index) _mm256_i32gather_ps(base, index, 4)
+#define kdrt__m_gather_zero(base, index)                                                        \
+    _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_i32gather_epi32((const int *)(base), index, 4), \
+                                           _mm256_setzero_si256()))
+#define kdrt__m_and(a, b) _mm256_and_ps(a, b)
+#define kdrt__m_or(a, b) _mm256_or_ps(a, b)
+#define kdrt__m_xor(a, b) _mm256_xor_ps(a, b)
+#define kdrt__m_andnot(a, b) _mm256_andnot_ps(a, b) /* b and not a */
+#define kdrt__m_all() _mm256_castsi256_ps(_mm256_set1_epi32(-1))
+#define kdrt__m_none() _mm256_setzero_ps()
+#define kdrt__m_bits(m) ((unsigned)_mm256_movemask_ps(m))
+#define kdrt__vd_zero() _mm256_setzero_pd()
+#define kdrt__vd_set1(x) _mm256_set1_pd(x)
+#define kdrt__vd_add(a, b) _mm256_add_pd(a, b)
+#define kdrt__vd_sub(a, b) _mm256_sub_pd(a, b)
+#define kdrt__vd_mul(a, b) _mm256_mul_pd(a, b)
+#define kdrt__vd_div(a, b) _mm256_div_pd(a, b)
+#define kdrt__vd_cmp(a, b, predicate) _mm256_cmp_pd(a, b, predicate)
+#define kdrt__md_and(a, b) _mm256_and_pd(a, b)
+#define kdrt__md_or(a, b) _mm256_or_pd(a, b)
+#define kdrt__md_andnot(a, b) _mm256_andnot_pd(a, b)
+#define kdrt__md_bits(m) ((unsigned)_mm256_movemask_pd(m))
+#define kdrt__vd_widen(x, half) /* the floats of half 0 or 1 of x, exact */                  \
+    _mm256_cvtps_pd((half) ? _mm256_extractf128_ps(x, 1) : _mm256_castps256_ps128(x))
+#define kdrt__vd_store_ps(p, x) _mm_storeu_ps(p, _mm256_cvtpd_ps(x))
+/* Lane i of a ray's floats: rays are 9 floats apart. */
+#define kdrt__vi_ray_index() _mm256_setr_epi32(0, 9, 18, 27, 36, 45, 54, 63)
+
+
+#elif KDRT__PACKET_WIDTH == 16
+#define KDRT__W(name) name##_avx512
+#define KDRT__W_TARGET KDRT__TARGET_AVX512
+#define kdrt__v __m512
+#define kdrt__vm __mmask16
+#define kdrt__vd __m512d
+#define kdrt__vdm __mmask8
+#if defined(__FMA__)
+/* The whole file is compiled with FMA: the compiler may fuse these as it fuses the AVX2
+   kernel's operations of the same shape. */
+#define kdrt__v_add(a, b) _mm512_add_ps(a, b)
+#define kdrt__v_sub(a, b) _mm512_sub_ps(a, b)
+#define kdrt__v_mul(a, b) _mm512_mul_ps(a, b)
+#define kdrt__vd_add(a, b) _mm512_add_pd(a, b)
+#define kdrt__vd_sub(a, b) _mm512_sub_pd(a, b)
+#define kdrt__vd_mul(a, b) _mm512_mul_pd(a, b)
+#else
+/* AVX-512 implies FMA, and GCC fuses a multiply and an add of plain intrinsics into one (its
+   default -ffp-contract=fast), which the AVX2 kernel's code, without FMA, never does: the forms
+   with the rounding named are not fused, so each operation rounds as the AVX2 kernel's does
+   (their zero-masking forms with every lane kept: GCC 12's unmasked intrinsics start from an
+   undefined vector, which trips its -Wmaybe-uninitialized in C++; so below too). */
+#define KDRT__NEAREST (_MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC)
+#define kdrt__v_add(a, b) _mm512_maskz_add_round_ps(0xFFFF, a, b, KDRT__NEAREST)
+#define kdrt__v_sub(a, b) _mm512_maskz_sub_round_ps(0xFFFF, a, b, KDRT__NEAREST)
+#define kdrt__v_mul(a, b) _mm512_maskz_mul_round_ps(0xFFFF, a, b, KDRT__NEAREST)
+#define kdrt__vd_add(a, b) _mm512_maskz_add_round_pd(0xFF, a, b, KDRT__NEAREST)
+#define kdrt__vd_sub(a, b) _mm512_maskz_sub_round_pd(0xFF, a, b, KDRT__NEAREST)
+#define kdrt__vd_mul(a, b) _mm512_maskz_mul_round_pd(0xFF, a, b, KDRT__NEAREST)
+#endif
+#define kdrt__v_set1(x) _mm512_set1_ps(x)
+#define kdrt__v_zero() _mm512_setzero_ps()
+#define kdrt__v_load(p) _mm512_loadu_ps(p)
+#define kdrt__v_store(p, x) _mm512_storeu_ps(p, x)
+#define kdrt__v_div(a, b) _mm512_div_ps(a, b)
+#define kdrt__v_abs(a) _mm512_abs_ps(a)
+#define kdrt__v_cmp(a, b, predicate) _mm512_cmp_ps_mask(a, b, predicate)
+#define kdrt__v_blend(a, b, m) _mm512_mask_blend_ps(m, a, b)
+#define kdrt__v_gather(base, index) _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, index, base, 4)
+#define kdrt__m_gather_zero(base, index)                                                        \
+    _mm512_cmpeq_epi32_mask(_mm512_mask_i32gather_epi32(_mm512_setzero_si512(), 0xFFFF, index, (const int *)(base), 4), \
+                            _mm512_setzero_si512())
+#define kdrt__m_and(a, b) ((__mmask16)((a) & (b)))
+#define kdrt__m_or(a, b) ((__mmask16)((a) | (b)))
+#define kdrt__m_xor(a, b) ((__mmask16)((a) ^ (b)))
+#define kdrt__m_andnot(a, b) ((__mmask16)(~(a) & (b)))
+#define kdrt__m_all() ((__mmask16)0xFFFFu)
+#define kdrt__m_none() ((__mmask16)0)
+#define kdrt__m_bits(m) ((unsigned)(m))
+#define kdrt__vd_zero() _mm512_setzero_pd()
+#define kdrt__vd_set1(x) _mm512_set1_pd(x)
+#define kdrt__vd_div(a, b) _mm512_div_pd(a, b)
+#define kdrt__vd_cmp(a, b, predicate) _mm512_cmp_pd_mask(a, b, predicate)
+#define kdrt__md_and(a, b) ((__mmask8)((a) & (b)))
+#define kdrt__md_or(a, b) ((__mmask8)((a) | (b)))
+#define kdrt__md_andnot(a, b) ((__mmask8)(~(a) & (b)))
+#define kdrt__md_bits(m) ((unsigned)(m))
+#define kdrt__vd_half(x, half) _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(0xF, _mm512_castps_pd(x), half))
+#define kdrt__vd_widen(x, half) _mm512_maskz_cvtps_pd(0xFF, (half) ? kdrt__vd_half(x, 1) : kdrt__vd_half(x, 0))
+#define kdrt__vd_store_ps(p, x) _mm256_storeu_ps(p, _mm512_maskz_cvtpd_ps(0xFF, x))
+#define kdrt__vi_ray_index()                                                                    \
+    _mm512_setr_epi32(0, 9, 18, 27, 36, 45, 54, 63, 72, 81, 90, 99, 108, 117, 126, 135)
+
+#endif
+
+#if KDRT__PACKET_PARTS & 1
+/* ---- the lanes' exact test ---- */
+
+/* A filter in float before the exact edge functions: the lanes that surely have edge functions
+   of both signs, so that the exact test would reject them. An edge function a * b - c * d
+   is negative where a * b < c * d; rounding is monotone, so where float's products compare
+   a * b < c * d (or >), the exact ones do too. Equal float products (or a NaN from an overflow)
+   say nothing, and the exact test decides. The products are compared, not subtracted: a
+   compiler may fuse a * b - (c * d) into an FMA (-mfma -ffp-contract=fast), whose sign can be
+   wrong. So the filter changes no answer, only how soon most blocks are left. */
+KDRT__W_TARGET static KDRT__FORCEINLINE unsigned KDRT__W(kdrt__surely_missed)(const kdrt__v x[3],
+                                                                              const kdrt__v y[3])
+{
+    kdrt__vm neg = kdrt__m_none(), pos = kdrt__m_none();
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const int i = (k + 2) % 3, j = (k + 1) % 3; /* edge j-i, weight of corner k, as below */
+        const kdrt__v a = kdrt__v_mul(x[i], y[j]), b = kdrt__v_mul(y[i], x[j]);
+        neg = kdrt__m_or(neg, kdrt__v_cmp(a, b, _CMP_LT_OQ));
+        pos = kdrt__m_or(pos, kdrt__v_cmp(a, b, _CMP_GT_OQ));
+    }
+    return kdrt__m_bits(kdrt__m_and(neg, pos));
+}
+
+/* The exact part of kdrt__intersect_watertight on W lanes of corners already moved to the ray's
+   origin and sheared (x, y, z: corner k's in each lane), for the lanes of lanes. A lane is a
+   triangle of a block against one ray (kdrt__block_watertight_avx2), or a triangle against a
+   ray of a packet (kdrt__packet_leaf): the same arithmetic either way, in double, half the lanes
+   at a time. */
+KDRT__W_TARGET static KDRT__FORCEINLINE unsigned KDRT__W(kdrt__watertight_lanes)(
+    const kdrt__v fx[3], const kdrt__v fy[3], const kdrt__v fz[3], unsigned lanes,
+    kdrt__candidates *c)
+{
+    const kdrt__vd zero = kdrt__vd_zero();
+    const unsigned half = KDRT__PACKET_WIDTH / 2;
+    kdrt__vd x[3][2], y[3][2], z[3][2], e0[2], e1[2], e2[2], det[2];
+    unsigned mask = 0;
+    int k, h;
+    if ((KDRT__W(kdrt__surely_missed)(fx, fy) | ~lanes) == 0xFFFFFFFFu) return 0;
+    for (k = 0; k < 3; ++k)
+        for (h = 0; h < 2; ++h)
+            x[k][h] = kdrt__vd_widen(fx[k], h), y[k][h] = kdrt__vd_widen(fy[k], h),
+            z[k][h] = kdrt__vd_widen(fz[k], h);
+    for (h = 0; h < 2; ++h) {
+        kdrt__vdm neg, pos, keep;
+        e0[h] = kdrt__vd_sub(kdrt__vd_mul(x[2][h], y[1][h]), kdrt__vd_mul(y[2][h], x[1][h]));
+        e1[h] = kdrt__vd_sub(kdrt__vd_mul(x[0][h], y[2][h]), kdrt__vd_mul(y[0][h], x[2][h]));
+        e2[h] = kdrt__vd_sub(kdrt__vd_mul(x[1][h], y[0][h]), kdrt__vd_mul(y[1][h], x[0][h]));
+        neg = kdrt__md_or(kdrt__md_or(kdrt__vd_cmp(e0[h], zero, _CMP_LT_OQ),
+                                      kdrt__vd_cmp(e1[h], zero, _CMP_LT_OQ)),
+                          kdrt__vd_cmp(e2[h], zero, _CMP_LT_OQ));
+        pos = kdrt__md_or(kdrt__md_or(kdrt__vd_cmp(e0[h], zero, _CMP_GT_OQ),
+                                      kdrt__vd_cmp(e1[h], zero, _CMP_GT_OQ)),
+                          kdrt__vd_cmp(e2[h], zero, _CMP_GT_OQ));
+        det[h] = kdrt__vd_add(kdrt__vd_add(e0[h], e1[h]), e2[h]);
+        /* not (negative and positive), and det != 0 (unordered: NaN goes on, as in C) */
+        keep = kdrt__md_andnot(kdrt__md_and(neg, pos), kdrt__vd_cmp(det[h], zero, _CMP_NEQ_UQ));
+        mask |= kdrt__md_bits(keep) << (half * (unsigned)h);
+    }
+    mask &= lanes;
+    if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
+    c->front = 0;
+    for (h = 0; h < 2; ++h) {
+        const kdrt__vd inv_det = kdrt__vd_div(kdrt__vd_set1(1.0), det[h]);
+        const kdrt__vd num = kdrt__vd_add(kdrt__vd_add(kdrt__vd_mul(e0[h], z[0][h]),
+                                                       kdrt__vd_mul(e1[h], z[1][h])),
+                                          kdrt__vd_mul(e2[h], z[2][h]));
+        c->front |= kdrt__md_bits(kdrt__vd_cmp(det[h], zero, _CMP_GT_OQ)) << (half * (unsigned)h);
+        kdrt__vd_store_ps(c->t + half * (unsigned)h, kdrt__vd_mul(num, inv_det));
+        kdrt__vd_store_ps(c->u + half * (unsigned)h, kdrt__vd_mul(e1[h], inv_det));
+        kdrt__vd_store_ps(c->v + half * (unsigned)h, kdrt__vd_mul(e2[h], inv_det));
+    }
+    return mask;
+}
+#endif /* KDRT__PACKET_PARTS & 1 */
+
+#if KDRT__PACKET_PARTS & 2
+/* ---- the packets ---- */
+
+#if KDRT__PACKET_WIDTH == 8
+/* The least and the greatest of x over the lanes of lanes (one at least). */
+KDRT__W_TARGET static KDRT__FORCEINLINE void kdrt__v_range_avx2(__m256 x, unsigned lanes,
+                                                                float *least, float *greatest)
+{
+    const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    const __m256 in = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32((int)lanes), bit), bit));
+    __m256 lo = _mm256_blendv_ps(_mm256_set1_ps(INFINITY), x, in);
+    __m256 hi = _mm256_blendv_ps(_mm256_set1_ps(-INFINITY), x, in);
+    lo = _mm256_min_ps(lo, _mm256_permute2f128_ps(lo, lo, 1));
+    hi = _mm256_max_ps(hi, _mm256_permute2f128_ps(hi, hi, 1));
+    lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0x4E));
+    hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0x4E));
+    lo = _mm256_min_ps(lo, _mm256_shuffle_ps(lo, lo, 0xB1));
+    hi = _mm256_max_ps(hi, _mm256_shuffle_ps(hi, hi, 0xB1));
+    *least = _mm256_cvtss_f32(lo), *greatest = _mm256_cvtss_f32(hi);
+}
+#define kdrt__v_range kdrt__v_range_avx2
+#else
+/* The least and the greatest of x over the lanes of lanes (one at least). */
+KDRT__W_TARGET static KDRT__FORCEINLINE void kdrt__v_range_avx512(__m512 x, unsigned lanes,
+                                                                  float *least, float *greatest)
+{
+    /* the halves' least and greatest, then kdrt__v_range_avx2's reduction (GCC 12's
+       _mm512_mask_reduce_min_ps trips -Wmaybe-uninitialized in C++) */
+    const __m512 lo = _mm512_mask_blend_ps((__mmask16)lanes, _mm512_set1_ps(INFINITY), x);
+    const __m512 hi = _mm512_mask_blend_ps((__mmask16)lanes, _mm512_set1_ps(-INFINITY), x);
+    float unused;
+    kdrt__v_range_avx2(_mm256_min_ps(kdrt__vd_half(lo, 0), kdrt__vd_half(lo, 1)), 0xFFu, least, &unused);
+    kdrt__v_range_avx2(_mm256_max_ps(kdrt__vd_half(hi, 0), kdrt__vd_half(hi, 1)), 0xFFu, &unused, greatest);
+}
+#define kdrt__v_range kdrt__v_range_avx512
+#endif
+
+/* A node for later, with the lanes that visit it and their ranges there. */
+typedef struct KDRT__W(kdrt__packet_todo) {
+    kdrt__v t0, t1;
+    uint32_t node;
+    unsigned lanes;
+} KDRT__W(kdrt__packet_todo);
+
+/* One leaf for the lanes of lanes of a sheared packet (kdrt__packet.sheared): the triangles no
+   cull rules out, each against the lanes' rays at once, with kdrt__intersect_watertight's
+   arithmetic in each lane; each lane's hits taken as its own walk takes them. Returns the lanes
+   that found one when any_hit. */
+KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_leaf)(const kdrt_tree *tree,
+                                                          const kdrt__node *n, kdrt__packet *p,
+                                                          unsigned lanes, int any_hit,
+                                                          kdrt_traversal_stats *stats)
+{
+    const uint32_t first = n->u.first, count = kdrt__node_count(n);
+    const int kx = p->kx, ky = p->ky, kz = p->kz;
+    const kdrt__v ox = kdrt__v_load(p->org[kx]), oy = kdrt__v_load(p->org[ky]);
+    const kdrt__v oz = kdrt__v_load(p->org[kz]);
+    const kdrt__v sx = kdrt__v_load(p->shear[0]), sy = kdrt__v_load(p->shear[1]);
+    const kdrt__v sz = kdrt__v_load(p->shear[2]);
+    unsigned found = 0;
+    uint32_t i;
+    for (i = 0; i < count; i += KDRT__LANES) {
+        const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
+        /* the block's own triangles: a last block's copies of its last one repeat its answer */
+        unsigned triangles = count - i < KDRT__LANES ? (1u << (count - i)) - 1u : 0xFFu;
+        triangles &= ~(p->point ? kdrt__packet_culled_avx2(block, p, 1) : kdrt__packet_culled_avx2(block, p, 0));
+        KDRT__COUNT(stats, packet_blocks, 1);
+        if (kdrt__bit_count(triangles) > kdrt__bit_count(lanes)) {
+            /* More triangles left than rays: each ray's test of the block costs less. */
+            unsigned left;
+            for (left = lanes; left; left &= left - 1u) {
+                const unsigned lane = (unsigned)__builtin_ctz(left);
+                kdrt__candidates c;
+                const unsigned mask = kdrt__block_test_apart(block, &p->s[lane], &c);
+                KDRT__COUNT(stats, block_tests, 1);
+                if (!mask || !kdrt__accept_lanes(p->best[lane], block, mask, &c, &p->s[lane], 0))
+                    continue;
+                p->bound[lane] = p->best[lane]->t;
+                if (any_hit) found |= 1u << lane, lanes &= ~(1u << lane);
+            }
+            if (!lanes) return found;
+            continue;
+        }
+        for (; triangles; triangles &= triangles - 1u) {
+            const unsigned j = (unsigned)__builtin_ctz(triangles), id = block->id[j];
+            kdrt__v fx[3], fy[3], fz[3];
+            kdrt__candidates c;
+            unsigned hits;
+            int k;
+            KDRT__COUNT(stats, packet_triangles, 1);
+            for (k = 0; k < 3; ++k) {
+                const kdrt__v dx = kdrt__v_sub(kdrt__v_set1(block->corner[3 * k + kx][j]), ox);
+                const kdrt__v dy = kdrt__v_sub(kdrt__v_set1(block->corner[3 * k + ky][j]), oy);
+                const kdrt__v dz = kdrt__v_sub(kdrt__v_set1(block->corner[3 * k + kz][j]), oz);
+                fx[k] = kdrt__v_sub(dx, kdrt__v_mul(sx, dz));
+                fy[k] = kdrt__v_sub(dy, kdrt__v_mul(sy, dz));
+                fz[k] = kdrt__v_mul(sz, dz);
+            }
+            for (hits = KDRT__W(kdrt__watertight_lanes)(fx, fy, fz, lanes, &c); hits; hits &= hits - 1u) {
+                const unsigned lane = (unsigned)__builtin_ctz(hits);
+                kdrt_hit *best = p->best[lane];
+                if (!kdrt__accept(best, id, c.t[lane], c.u[lane], c.v[lane], &p->s[lane])) continue;
+                p->bound[lane] = best->t;
+                if (any_hit) found |= 1u << lane, lanes &= ~(1u << lane);
+            }
+            if (!lanes) return found;
+        }
+    }
+    return found;
+}
+
+/* The packet's walk from the root: kdrt__walk_ray's walk from the root for each lane, the lanes
+   that visit the same node at once. At a plane each lane takes kdrt__descend's decision, with its
+   operations, so the same one: near only, far only, both (near, the first, up to the plane, far
+   from it), or the origin on the plane (far, then the first, up to t = 0, near over the whole
+   range). The children are visited in the packet's order, the side the rays come from first; a
+   lane whose origin lies off the plane at a distance that rounds to t = 0 would visit them the
+   other way round: it goes back to the single-ray walk. Inlined twice, so that any_hit is a
+   constant. */
+KDRT__W_TARGET static KDRT__FORCEINLINE void KDRT__W(kdrt__packet_walk_from)(
+    const kdrt_tree *tree, kdrt__packet *p, kdrt__v t0, kdrt__v t1, int any_hit,
+    kdrt_traversal_stats *stats)
+{
+    KDRT__W(kdrt__packet_todo) stack[KDRT_MAX_DEPTH];
+    const kdrt__v zero = kdrt__v_zero();
+    const kdrt__v below_slack = kdrt__v_set1(1.0f - KDRT__T_SLACK);
+    const kdrt__v above_slack = kdrt__v_set1(1.0f + KDRT__T_SLACK);
+    uint32_t sp = 0, node = 0;
+    unsigned lanes = p->lanes;
+    for (;;) {
+        const kdrt__node *n = &tree->nodes[node];
+        if (!kdrt__node_is_leaf(n)) {
+            const uint32_t axis = kdrt__node_axis(n);
+            const int negative = (int)((p->negative >> axis) & 1u);
+            const kdrt__v split = kdrt__v_set1(n->u.split), o = kdrt__v_load(p->org[axis]);
+            const kdrt__v t_split = kdrt__v_mul(kdrt__v_sub(split, o), kdrt__v_load(p->inv_dir[axis]));
+            const kdrt__v lo = kdrt__v_mul(t_split, below_slack);
+            const kdrt__v hi = kdrt__v_mul(t_split, above_slack);
+            const kdrt__vm near_first = negative ? kdrt__v_cmp(o, split, _CMP_GT_OQ)
+                                                 : kdrt__v_cmp(o, split, _CMP_LT_OQ);
+            const kdrt__vm on_plane = kdrt__m_and(kdrt__v_cmp(t_split, zero, _CMP_EQ_OQ),
+                                                  kdrt__v_cmp(t0, zero, _CMP_LE_OQ));
+            const kdrt__vm near_only = kdrt__m_andnot(
+                on_plane, kdrt__m_or(kdrt__v_cmp(t_split, zero, _CMP_LE_OQ), kdrt__v_cmp(lo, t1, _CMP_GT_OQ)));
+            const kdrt__vm far_only = kdrt__m_andnot(kdrt__m_or(on_plane, near_only),
+                                                     kdrt__v_cmp(hi, t0, _CMP_LT_OQ));
+            const kdrt__vm one_side = kdrt__m_or(near_only, far_only);
+            /* near only and near first, or far only and far first: the first child alone */
+            const unsigned first_only = kdrt__m_bits(kdrt__m_and(one_side, kdrt__m_xor(near_first, far_only)));
+            const unsigned one = kdrt__m_bits(one_side);
+            const unsigned retire = lanes & kdrt__m_bits(kdrt__m_and(on_plane, near_first));
+            const unsigned live = lanes & ~retire;
+            const unsigned first = live & (~one | first_only), second = live & (~one | ~first_only);
+            const uint32_t below = node + 1, above = kdrt__node_above(n);
+            KDRT__COUNT(stats, packet_steps, 1);
+            KDRT__COUNT(stats, packet_step_lanes, (uint64_t)kdrt__bit_count(lanes));
+            if (retire) p->alone |= retire, p->lanes &= ~retire;
+            if (first && second) {
+                /* both, from the plane on (the origin on the plane: over the whole range) */
+                const kdrt__vm both = kdrt__m_andnot(kdrt__m_or(one_side, on_plane), kdrt__m_all());
+                KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
+                stack[sp].t0 = kdrt__v_blend(t0, lo, both), stack[sp].t1 = t1;
+                stack[sp].node = negative ? below : above, stack[sp].lanes = second, ++sp;
+                t1 = kdrt__v_blend(kdrt__v_blend(t1, hi, both), zero, on_plane);
+                node = negative ? above : below, lanes = first;
+                continue;
+            }
+            if (first) {
+                node = negative ? above : below, lanes = first;
+                continue;
+            }
+            if (second) {
+                node = negative ? below : above, lanes = second;
+                continue;
+            }
+        } else {
+            unsigned lane, cells;
+            KDRT__COUNT(stats, packet_leaves, 1);
+            if (p->sheared) {
+                const unsigned found = KDRT__W(kdrt__packet_leaf)(tree, n, p, lanes, any_hit, stats);
+                p->found |= found, p->lanes &= ~found, lanes &= ~found;
+            } else {
+                for (cells = lanes; cells; cells &= cells - 1u) {
+                    lane = (unsigned)__builtin_ctz(cells);
+                    if (kdrt__test_leaf_apart(tree, n, &p->s[lane], p->best[lane], any_hit, stats)) {
+                        p->found |= 1u << lane, p->lanes &= ~(1u << lane);
+                        continue;
+                    }
+                    p->bound[lane] = p->best[lane]->t;
+                }
+            }
+            if (!any_hit) /* the lanes whose best hit so far may lie here */
+                for (cells = lanes & kdrt__m_bits(kdrt__v_cmp(kdrt__v_load(p->bound), t1, _CMP_LE_OQ));
+                     cells; cells &= cells - 1u)
+                    p->hit_cell[__builtin_ctz(cells)] = node;
+        }
+        /* Next node, with the lanes still walking that start it no later than their best hit. */
+        for (;;) {
+            if (sp == 0) return;
+            --sp;
+            lanes = stack[sp].lanes & p->lanes &
+                    ~kdrt__m_bits(kdrt__v_cmp(stack[sp].t0, kdrt__v_load(p->bound), _CMP_GT_OQ));
+            if (lanes) break;
+        }
+        node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
+    }
+}
+
+KDRT__W_TARGET static void KDRT__W(kdrt__packet_walk)(const kdrt_tree *tree, kdrt__packet *p,
+                                                      const float *t0, const float *t1,
+                                                      int any_hit, kdrt_traversal_stats *stats)
+{
+    KDRT__COUNT(stats, packets, 1);
+    KDRT__COUNT(stats, packet_lanes, (uint64_t)kdrt__bit_count(p->lanes));
+    if (any_hit) KDRT__W(kdrt__packet_walk_from)(tree, p, kdrt__v_load(t0), kdrt__v_load(t1), 1, stats);
+    else KDRT__W(kdrt__packet_walk_from)(tree, p, kdrt__v_load(t0), kdrt__v_load(t1), 0, stats);
+}
+
+/* kdrt__setup_ray and kdrt__clip_to_box for W rays at once, with their operations, so with their
+   results, for the lanes that can walk as a packet: finite, no zero component, a range that
+   meets the tree's box, and for the nearest hit no start cell. Of those, the lanes that share
+   the first one's direction signs and largest axis are returned, set up in p (s, org, inv_dir,
+   shear, bound, kx, ky, kz, negative, lo, hi, point) and t0, t1; the others are set up ray by
+   ray. */
+KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_setup)(const kdrt_tree *tree,
+                                                           const kdrt_ray *rays, kdrt__packet *p,
+                                                           float *t0, float *t1, int any_hit)
+{
+    const float *base = (const float *)(const void *)rays;
+    const kdrt__v zero = kdrt__v_zero(), one = kdrt__v_set1(1.0f);
+    kdrt__v o[3], d[3], inv[3], abs_d[3], tmin, tmax, enter, exit, x[5];
+    kdrt__vm ok = kdrt__m_all(), kz1, kz2;
+    float dirs[3][KDRT__PACKET_WIDTH], tmins[KDRT__PACKET_WIDTH];
+    unsigned lanes, negative[3], first, left;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        o[a] = kdrt__v_gather(base + a, kdrt__vi_ray_index());
+        d[a] = kdrt__v_gather(base + 4 + a, kdrt__vi_ray_index());
+        inv[a] = kdrt__v_div(one, d[a]);
+        abs_d[a] = kdrt__v_abs(d[a]);
+        /* finite origin and direction, no zero component, a finite inverse */
+        ok = kdrt__m_and(ok, kdrt__v_cmp(kdrt__v_sub(o[a], o[a]), zero, _CMP_EQ_OQ));
+        ok = kdrt__m_and(ok, kdrt__v_cmp(kdrt__v_sub(d[a], d[a]), zero, _CMP_EQ_OQ));
+        ok = kdrt__m_and(ok, kdrt__v_cmp(kdrt__v_sub(inv[a], inv[a]), zero, _CMP_EQ_OQ));
+        ok = kdrt__m_and(ok, kdrt__v_cmp(d[a], zero, _CMP_NEQ_OQ));
+        negative[a] = kdrt__m_bits(kdrt__v_cmp(d[a], zero, _CMP_LT_OQ));
+    }
+    tmin = kdrt__v_gather(base + 3, kdrt__vi_ray_index());
+    tmax = kdrt__v_gather(base + 7, kdrt__vi_ray_index());
+    ok = kdrt__m_and(ok, kdrt__v_cmp(tmin, tmin, _CMP_ORD_Q)); /* a NaN tmin: no hit */
+    tmin = kdrt__v_blend(zero, tmin, kdrt__v_cmp(tmin, zero, _CMP_GT_OQ)); /* -0 and below give +0 */
+    ok = kdrt__m_and(ok, kdrt__v_cmp(tmin, tmax, _CMP_LE_OQ));
+    if (!any_hit) /* a start cell: the ray takes its rope walk */
+        ok = kdrt__m_and(ok, kdrt__m_gather_zero(base + 8, kdrt__vi_ray_index()));
+    enter = tmin, exit = tmax;
+    for (a = 0; a < 3; ++a) {
+        const kdrt__v ta = kdrt__v_mul(kdrt__v_sub(kdrt__v_set1(tree->bounds.min[a]), o[a]), inv[a]);
+        const kdrt__v tb = kdrt__v_mul(kdrt__v_sub(kdrt__v_set1(tree->bounds.max[a]), o[a]), inv[a]);
+        const kdrt__vm a_first = kdrt__v_cmp(ta, tb, _CMP_LT_OQ);
+        const kdrt__v tnear = kdrt__v_mul(kdrt__v_blend(tb, ta, a_first), kdrt__v_set1(1.0f - KDRT__T_SLACK));
+        const kdrt__v tfar = kdrt__v_mul(kdrt__v_blend(ta, tb, a_first), kdrt__v_set1(1.0f + KDRT__T_SLACK));
+        enter = kdrt__v_blend(enter, tnear, kdrt__v_cmp(tnear, enter, _CMP_GT_OQ));
+        exit = kdrt__v_blend(exit, tfar, kdrt__v_cmp(tfar, exit, _CMP_LT_OQ));
+    }
+    ok = kdrt__m_and(ok, kdrt__v_cmp(enter, exit, _CMP_LE_OQ));
+    lanes = kdrt__m_bits(ok);
+    if (!lanes) return 0;
+    /* kz, the first axis of the largest |dir| (kdrt__setup_ray's): 1 where kz1 and not kz2, 2 where kz2 */
+    kz1 = kdrt__v_cmp(abs_d[1], abs_d[0], _CMP_GT_OQ);
+    kz2 = kdrt__v_cmp(abs_d[2], kdrt__v_blend(abs_d[0], abs_d[1], kz1), _CMP_GT_OQ);
+    first = (unsigned)__builtin_ctz(lanes);
+    {
+        const unsigned m1 = kdrt__m_bits(kz1), m2 = kdrt__m_bits(kz2);
+        lanes &= kdrt__same_bit(negative[0], first) & kdrt__same_bit(negative[1], first) &
+                 kdrt__same_bit(negative[2], first) & kdrt__same_bit(m1, first) &
+                 kdrt__same_bit(m2, first);
+        p->kz = (m2 >> first) & 1u ? 2 : (m1 >> first) & 1u ? 1 : 0;
+    }
+    p->negative = ((negative[0] >> first) & 1u) | ((negative[1] >> first) & 1u) << 1 |
+                  ((negative[2] >> first) & 1u) << 2;
+    p->kx = (p->kz + 1) % 3, p->ky = (p->kx + 1) % 3;
+    if ((p->negative >> p->kz) & 1u) { const int k = p->kx; p->kx = p->ky, p->ky = k; }
+    kdrt__v_store(t0, enter), kdrt__v_store(t1, exit);
+    kdrt__v_store(p->bound, tmax);
+    for (a = 0; a < 3; ++a) {
+        kdrt__v_store(p->org[a], o[a]), kdrt__v_store(p->inv_dir[a], inv[a]);
+        kdrt__v_store(dirs[a], d[a]);
+    }
+    x[0] = o[p->kx], x[1] = o[p->ky], x[2] = o[p->kz];
+    x[3] = kdrt__v_div(d[p->kx], d[p->kz]), x[4] = kdrt__v_div(d[p->ky], d[p->kz]);
+    kdrt__v_store(p->shear[0], x[3]), kdrt__v_store(p->shear[1], x[4]);
+    kdrt__v_store(p->shear[2], kdrt__v_div(one, d[p->kz]));
+    kdrt__v_store(tmins, tmin);
+    for (a = 0; a < 5; ++a) /* the bounds over the packet's lanes of their origins and shears */
+        kdrt__v_range(x[a], lanes, &p->lo[a], &p->hi[a]);
+    p->point = p->lo[0] == p->hi[0] && p->lo[1] == p->hi[1] && p->lo[2] == p->hi[2];
+    for (left = lanes; left; left &= left - 1u) {
+        const unsigned lane = (unsigned)__builtin_ctz(left);
+        kdrt__ray_setup *s = &p->s[lane];
+        for (a = 0; a < 3; ++a)
+            s->org[a] = p->org[a][lane], s->dir[a] = dirs[a][lane], s->inv_dir[a] = p->inv_dir[a][lane];
+        s->tmin = tmins[lane], s->tmax = p->bound[lane];
+        s->list = NULL, s->rules = NULL;
+        s->kx = p->kx, s->ky = p->ky, s->kz = p->kz;
+        s->shear_x = p->shear[0][lane], s->shear_y = p->shear[1][lane], s->shear_z = p->shear[2][lane];
+    }
+    return lanes;
+}
+
+/* kdrt__batch with this kernel: W rays at a time, as a packet where they can be one. */
+KDRT__W_TARGET static uint32_t KDRT__W(kdrt__batch)(const kdrt_tree *tree, const kdrt_ray *rays,
+                                                    uint32_t count, kdrt_hit *hits,
+                                                    uint8_t *occluded, int any_hit,
+                                                    kdrt_traversal_stats *stats)
+{
+    const uint32_t width = KDRT__PACKET_WIDTH;
+    kdrt__packet p;
+    kdrt_hit scratch[KDRT__PACKET_WIDTH]; /* any_hit: the walk's hits, unused after */
+    kdrt_ray last[KDRT__PACKET_WIDTH];    /* the last rays, when fewer than W, and copies of the last */
+    uint32_t i, found = 0, skip = 0, failures = 0;
+    for (i = 0; i < count; i += width) {
+        const uint32_t n = count - i < width ? count - i : width;
+        const kdrt_ray *group = rays + i;
+        float t0[KDRT__PACKET_WIDTH], t1[KDRT__PACKET_WIDTH];
+        unsigned lane, left, walked, alone;
+        if (skip || n < KDRT__PACKET_MIN_LANES) {
+            /* Incoherent rays: after packets that did not form, the next groups go straight
+               to the single-ray walk, a group more each time (up to 64), before trying again.
+               So do groups too small for a packet (a batch of one ray: its single call). */
+            if (skip) --skip;
+            found += any_hit ? kdrt__batch_alone(tree, rays + i, n, NULL, occluded + i, stats)
+                             : kdrt__batch_alone(tree, rays + i, n, hits + i, NULL, stats);
+            continue;
+        }
+        if (n < width) {
+            for (lane = 0; lane < width; ++lane) last[lane] = rays[i + (lane < n ? lane : n - 1u)];
+            group = last;
+        }
+        p.lanes = KDRT__W(kdrt__packet_setup)(tree, group, &p, t0, t1, any_hit) & ((1u << n) - 1u);
+        /* The other rays' setup is SSE code: run with AVX's upper halves dirty, each of its
+           instructions waits on them (GCC inserts no vzeroupper before these calls). */
+        _mm256_zeroupper();
+        p.alone = p.found = 0;
+        p.sheared = tree->watertight;
+        alone = 0;
+        for (lane = 0; lane < n; ++lane) {
+            kdrt_hit *best = any_hit ? &scratch[lane] : &hits[i + lane];
+            p.best[lane] = best;
+            kdrt__miss(best);
+            if (!((p.lanes >> lane) & 1u)) {
+                /* not in the packet: set up alone, a miss or a ray of its own */
+                kdrt__ray_setup *s = &p.s[lane];
+                if (!kdrt__setup_ray(&group[lane], s) ||
+                    !kdrt__clip_to_box(&tree->bounds, s, &t0[lane], &t1[lane]))
+                    continue;
+                alone |= 1u << lane;
+            }
+            best->t = p.s[lane].tmax;
+            p.hit_cell[lane] = 0;
+        }
+        if (!kdrt__packet_together(tree, &p)) alone |= p.lanes, p.lanes = 0;
+        walked = p.lanes;
+        if (walked) failures = 0;
+        else if (++failures >= 2) skip = failures < 8 ? 1u << (failures - 2) : 64u;
+        if (walked) KDRT__W(kdrt__packet_walk)(tree, &p, t0, t1, any_hit, stats);
+        walked &= ~p.alone;
+        for (left = p.alone; left; left &= left - 1u) { /* handed back during the walk: anew */
+            const unsigned l = (unsigned)__builtin_ctz(left);
+            kdrt__miss(p.best[l]);
+            p.best[l]->t = p.s[l].tmax;
+        }
+        alone |= p.alone;
+        for (lane = 0; lane < n; ++lane) {
+            const unsigned bit = 1u << lane;
+            int hit;
+            if (alone & bit)
+                hit = kdrt__walk_alone(tree, group[lane].cell, &p.s[lane], t0[lane], t1[lane],
+                                       p.best[lane], any_hit, stats);
+            else if (any_hit) hit = (p.found & bit) != 0;
+            else {
+                hit = p.best[lane]->triangle != KDRT_INVALID_ID;
+                if (hit && (walked & bit)) p.best[lane]->cell = p.hit_cell[lane];
+            }
+            if (any_hit) occluded[i + lane] = (uint8_t)hit;
+            found += (uint32_t)hit;
+        }
+    }
+    return found;
+}
+#endif /* KDRT__PACKET_PARTS & 2 */
+
+#undef KDRT__W
+#undef KDRT__W_TARGET
+#undef KDRT__NEAREST
+#undef kdrt__v
+#undef kdrt__vm
+#undef kdrt__vd
+#undef kdrt__vdm
+#undef kdrt__v_set1
+#undef kdrt__v_zero
+#undef kdrt__v_load
+#undef kdrt__v_store
+#undef kdrt__v_add
+#undef kdrt__v_sub
+#undef kdrt__v_mul
+#undef kdrt__v_div
+#undef kdrt__v_abs
+#undef kdrt__v_cmp
+#undef kdrt__v_blend
+#undef kdrt__v_gather
+#undef kdrt__v_range
+#undef kdrt__m_gather_zero
+#undef kdrt__m_and
+#undef kdrt__m_or
+#undef kdrt__m_xor
+#undef kdrt__m_andnot
+#undef kdrt__m_all
+#undef kdrt__m_none
+#undef kdrt__m_bits
+#undef kdrt__vd_zero
+#undef kdrt__vd_set1
+#undef kdrt__vd_add
+#undef kdrt__vd_sub
+#undef kdrt__vd_mul
+#undef kdrt__vd_div
+#undef kdrt__vd_cmp
+#undef kdrt__md_and
+#undef kdrt__md_or
+#undef kdrt__md_andnot
+#undef kdrt__md_bits
+#undef kdrt__vd_widen
+#undef kdrt__vd_half
+#undef kdrt__vd_store_ps
+#undef kdrt__vi_ray_index
+#endif /* KDRT__PACKET_WIDTH */
 
 /*
    MIT No Attribution

@@ -585,7 +585,20 @@ kt::TreePtr build_tree(const Mesh &mesh, uint32_t leaf, const kt::Builder &build
     return kt::TreePtr(tree);
 }
 
-const char *kernel_name(uint32_t flags) { return flags & KDRT_BUILD_SCALAR_KERNEL ? "scalar kernel" : "default kernel"; }
+const char *kernel_name(uint32_t flags) {
+    return flags & KDRT_BUILD_SCALAR_KERNEL ? "scalar kernel" : flags & KDRT_BUILD_AVX2_KERNEL ? "AVX2 kernel" : "default kernel";
+}
+
+// The build flags that give each kernel this machine runs: the default (the widest), the AVX2
+// kernel where the default is AVX-512, and the scalar kernel.
+std::vector<uint32_t> kernel_flags() {
+    const Mesh one = kt::random_soup(1, 1);
+    const kt::TreePtr tree = build_tree(one, 4, kt::kBuilders[0], KDRT_INTERSECTOR_WATERTIGHT, 0);
+    kdrt_tree_stats stats;
+    kdrt_tree_get_stats(tree.get(), &stats);
+    if (stats.kernel == KDRT_KERNEL_AVX512) return {0u, uint32_t(KDRT_BUILD_AVX2_KERNEL), uint32_t(KDRT_BUILD_SCALAR_KERNEL)};
+    return {0u, uint32_t(KDRT_BUILD_SCALAR_KERNEL)};
+}
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -664,9 +677,11 @@ TEST_CASE("batch: coherent and incoherent rays on generated meshes, bit for bit 
                               {kt::grid(96, 96, 5), kt::kBuilders[0], KDRT_INTERSECTOR_WATERTIGHT},
                               {kt::random_soup(20000, 7), kt::kSahBuilders[0], KDRT_INTERSECTOR_FAST}};
     const unsigned side = side_for(4);
-    size_t total[2] = {0, 0};
-    for (uint32_t flags : {0u, uint32_t(KDRT_BUILD_SCALAR_KERNEL)})
+    const std::vector<uint32_t> kernels = kernel_flags();
+    std::vector<size_t> total(kernels.size(), 0);
+    for (size_t k = 0; k < kernels.size(); ++k)
         for (const Config &c : configs) {
+            const uint32_t flags = kernels[k];
             INFO(c.mesh.name << ", " << c.builder.name << ", " << kernel_name(flags) << ", " << side << " x " << side << " pixels");
             const kt::TreePtr tree = build_tree(c.mesh, 4, c.builder, c.intersector, flags);
             Tally tally;
@@ -675,10 +690,10 @@ TEST_CASE("batch: coherent and incoherent rays on generated meshes, bit for bit 
             CHECK(tally.hits > tally.rays / 5);
             CHECK(tally.packet_rays > tally.rays / 2);  // the packet walk's rays, mostly
             CHECK(tally.packet_nearest_rays > tally.rays / 3);
-            total[flags ? 1 : 0] += tally.rays;
+            total[k] += tally.rays;
         }
-    WARN("batch: " << total[0] << " rays on the default kernel, " << total[1] << " on the scalar one, in " << seconds_since(start)
-                   << " s");
+    for (size_t k = 0; k < kernels.size(); ++k) WARN("batch: " << total[k] << " rays on the " << kernel_name(kernels[k]));
+    WARN("batch: in " << seconds_since(start) << " s");
     CHECK(total[0] >= 10 * kt::reference_ray_count());
 }
 
@@ -715,7 +730,7 @@ TEST_CASE("batch: coherent and incoherent rays on the shared meshes", "[batch][m
 TEST_CASE("batch: packets with an odd ray, mixed signs, special parts, per-lane ranges, split planes and hints", "[batch]") {
     const Mesh meshes[] = {kt::sphere(24, 36, 2.0), kt::grid(24, 24, 3)};
     const unsigned side = side_for(0.25);
-    for (uint32_t flags : {0u, uint32_t(KDRT_BUILD_SCALAR_KERNEL)})
+    for (uint32_t flags : kernel_flags())
         for (const Mesh &mesh : meshes) {
             INFO(mesh.name << ", " << kernel_name(flags));
             const kt::TreePtr tree = build_tree(mesh, 4, kt::kSahBuilders[1], KDRT_INTERSECTOR_WATERTIGHT, flags);

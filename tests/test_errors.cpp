@@ -189,7 +189,7 @@ TEST_CASE("errors: unknown builder or flag", "[errors]") {
         CHECK(try_build(m, o, &tree) == KDRT_ERROR_INVALID_OPTION);
         CHECK(tree == nullptr);
     }
-    for (uint32_t flags : {4u, 8u, 1u << 31, 0xFFFFFFFFu, 5u}) {
+    for (uint32_t flags : {8u, 16u, 1u << 31, 0xFFFFFFFFu, 9u}) {
         INFO("flags " << flags);
         kdrt_build_options o = kdrt_default_build_options();
         o.flags = flags;

@@ -1,5 +1,7 @@
-// The two kernels (KERNELS in kdrt.h): a tree built as usual runs the AVX2 kernel where the CPU
-// has AVX2, one built with KDRT_BUILD_SCALAR_KERNEL the scalar kernel, and both must return the
+// The kernels (KERNELS in kdrt.h): a tree built as usual runs the AVX-512 kernel where the CPU has
+// AVX-512, else the AVX2 kernel where it has AVX2 (their single-ray queries are the same code; the
+// batches' packets are compared in test_batch.cpp), one built with KDRT_BUILD_SCALAR_KERNEL the
+// scalar kernel, and the SIMD and scalar kernels must return the
 // same answers bit for bit (hit or miss, t, u, v, triangle; kdrt_occluded too) on every ray:
 // random ones, the hard placements (in-plane, on-plane, axis-parallel, +-0 directions, grazing),
 // rays at the vertices and edges of closed meshes, rays passing a hair inside or outside a
@@ -31,17 +33,22 @@ kt::TreePtr build_with(const common::Mesh &mesh, kdrt_builder builder, uint32_t 
     return kt::TreePtr(tree);
 }
 
-bool avx2_here()
+kdrt_kernel kernel_of(uint32_t flags)
 {
     common::Mesh one = kt::random_soup(1, 1);
     const kdrt_triangles view = one.view();
     kdrt_tree *tree = nullptr;
-    REQUIRE(kdrt_tree_build(&view, nullptr, &tree, nullptr) == KDRT_SUCCESS);
+    kdrt_build_options o = kdrt_default_build_options();
+    o.flags = flags;
+    REQUIRE(kdrt_tree_build(&view, &o, &tree, nullptr) == KDRT_SUCCESS);
     kdrt_tree_stats s;
     kdrt_tree_get_stats(tree, &s);
     kdrt_tree_free(tree);
-    return s.kernel == KDRT_KERNEL_AVX2;
+    return s.kernel;
 }
+
+// The default kernel is a SIMD one (AVX2 or AVX-512).
+bool simd_here() { return kernel_of(0) != KDRT_KERNEL_SCALAR; }
 
 #if !defined(KDRT_NO_SIMD)  // what compares the kernels
 // Bit for bit: the same return value and, on a hit, the same bits of t, u, v and the same
@@ -100,7 +107,7 @@ size_t compare_kernels(const common::Mesh &mesh, const std::vector<kdrt_ray> &ra
             kdrt_tree_stats ss, sc;
             kdrt_tree_get_stats(simd.get(), &ss);
             kdrt_tree_get_stats(scalar.get(), &sc);
-            REQUIRE(ss.kernel == KDRT_KERNEL_AVX2);
+            REQUIRE(ss.kernel != KDRT_KERNEL_SCALAR);
             REQUIRE(sc.kernel == KDRT_KERNEL_SCALAR);
             kt::check_same_shape(simd.get(), scalar.get());  // one tree format, two kernels
             size_t differ = 0, first = 0;
@@ -174,7 +181,7 @@ size_t compare_edge_grazing_rays(size_t triangles, uint32_t seed)
 
 }  // namespace
 
-TEST_CASE("kernels: KDRT_BUILD_SCALAR_KERNEL picks the scalar kernel, and the default the best one here", "[kernels]")
+TEST_CASE("kernels: KDRT_BUILD_SCALAR_KERNEL picks the scalar kernel, KDRT_BUILD_AVX2_KERNEL the AVX2 one, and the default the best one here", "[kernels]")
 {
     common::Mesh mesh = kt::random_soup(100, 3);
     kt::TreePtr scalar = build_with(mesh, KDRT_BUILDER_SAH, 4, KDRT_INTERSECTOR_WATERTIGHT, KDRT_BUILD_SCALAR_KERNEL);
@@ -183,18 +190,23 @@ TEST_CASE("kernels: KDRT_BUILD_SCALAR_KERNEL picks the scalar kernel, and the de
     CHECK(s.kernel == KDRT_KERNEL_SCALAR);
     CHECK(s.blocks >= (s.triangle_refs + 7) / 8);
 #if defined(KDRT_NO_SIMD)
-    // Built without the AVX2 kernel: the default is the scalar one, whatever the CPU.
-    CHECK_FALSE(avx2_here());
+    // Built without the SIMD kernels: the scalar one, whatever the CPU and the flags.
+    CHECK(kernel_of(0) == KDRT_KERNEL_SCALAR);
+    CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL) == KDRT_KERNEL_SCALAR);
 #elif defined(__x86_64__)
-    // Where kdrt.h compiles the AVX2 kernel in, a CPU with AVX2 gets it.
-    CHECK(avx2_here() == bool(__builtin_cpu_supports("avx2")));
+    // Where kdrt.h compiles the SIMD kernels in, a CPU with AVX-512 gets the AVX-512 one, a CPU
+    // with AVX2 alone the AVX2 one; KDRT_BUILD_AVX2_KERNEL stops at AVX2.
+    const bool avx2 = __builtin_cpu_supports("avx2"), avx512 = avx2 && __builtin_cpu_supports("avx512f");
+    CHECK(kernel_of(0) == (avx512 ? KDRT_KERNEL_AVX512 : avx2 ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR));
+    CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL) == (avx2 ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR));
+    CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL | KDRT_BUILD_SCALAR_KERNEL) == KDRT_KERNEL_SCALAR);
 #endif
 }
 
 #if !defined(KDRT_NO_SIMD)
 TEST_CASE("kernels: the AVX2 and scalar kernels answer every ray bit for bit alike", "[kernels]")
 {
-    if (!avx2_here()) {
+    if (!simd_here()) {
         kt::skip_test("this CPU has no AVX2: only the scalar kernel runs here");
         return;
     }
