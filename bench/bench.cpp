@@ -113,18 +113,71 @@ const char *quality_name(kdrt_build_quality quality) {
     }
 }
 
+uint32_t kernel_flags(const std::string &kernel) {
+    if (kernel == "avx2") return KDRT_BUILD_AVX2_KERNEL;
+    if (kernel == "scalar") return KDRT_BUILD_SCALAR_KERNEL;
+    return 0;  // avx512 and default: the widest kernel the CPU runs
+}
+
+const char *kernel_name(kdrt_kernel kernel) {
+    switch (kernel) {
+    case KDRT_KERNEL_AVX2: return "avx2";
+    case KDRT_KERNEL_AVX512: return "avx512";
+    default: return "scalar";
+    }
+}
+
+bool check_kernels(const std::vector<std::string> &kernels, std::string &error) {
+    const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const uint32_t indices[3] = {0, 1, 2};
+    kdrt_triangles one = {};
+    one.positions = positions;
+    one.indices = indices;
+    one.vertex_count = 3;
+    one.triangle_count = 1;
+    for (const std::string &kernel : kernels) {
+        if (kernel == "default") continue;
+        kdrt_build_options options = kdrt_default_build_options();
+        options.flags = kernel_flags(kernel);
+        kdrt_tree *tree = nullptr;
+        const kdrt_result r = kdrt_tree_build(&one, &options, &tree, nullptr);
+        if (r != KDRT_SUCCESS) {
+            error = "--kernel " + kernel + ": a test tree of one triangle did not build: " + kdrt_result_string(r);
+            return false;
+        }
+        kdrt_tree_stats stats;
+        kdrt_tree_get_stats(tree, &stats);
+        kdrt_tree_free(tree);
+        const std::string runs = kernel_name(stats.kernel);
+        if (runs != kernel) {
+            error = "--kernel " + kernel + " is not available here: this CPU (or this build of kdrt) lacks it, and a "
+                    "tree asked for it would run the " + runs + " kernel";
+            return false;
+        }
+    }
+    return true;
+}
+
 std::vector<BuildVariant> build_variants(const Options &opt) {
     std::vector<BuildVariant> variants;
     const std::vector<SahCosts> triples = opt.sah_costs.empty() ? std::vector<SahCosts>(1) : opt.sah_costs;
     const std::vector<kdrt_build_quality> qualities =
         opt.qualities.empty() ? std::vector<kdrt_build_quality>{KDRT_BUILD_QUALITY_DEFAULT} : opt.qualities;
+    const std::vector<std::string> kernels = opt.kernels.empty() ? std::vector<std::string>{"default"} : opt.kernels;
+    const auto each_kernel = [&](BuildVariant v) {  // the build once per kernel, kernels innermost
+        for (const std::string &kernel : kernels) {
+            v.kernel = kernel;
+            v.options.flags = kernel_flags(kernel);
+            variants.push_back(v);
+        }
+    };
     for (const std::string &builder : opt.builders) {
         BuildVariant v;
         v.builder = builder;
         v.options = kdrt_default_build_options();
         if (builder != "sah") {
             v.options.builder = KDRT_BUILDER_MEDIAN;
-            variants.push_back(v);
+            each_kernel(v);
             continue;
         }
         v.options.builder = KDRT_BUILDER_SAH;
@@ -136,7 +189,7 @@ std::vector<BuildVariant> build_variants(const Options &opt) {
                 v.options.sah_empty_bonus = c.empty_bonus;
                 v.sah_costs = sah_costs_label(c);
                 v.quality = quality_name(quality);
-                variants.push_back(v);
+                each_kernel(v);
             }
     }
     return variants;
@@ -247,6 +300,13 @@ std::string usage() {
            "                      rays' order (default with --batch: 4x2, 8 rays; 1x1 is the pixel\n"
            "                      order, the default without --batch)\n"
            "  --shuffle           the rays in a shuffled order (seeded): incoherent batches\n"
+           "  --kernel LIST       the kernel kdrt's trees run, comma-separated, each build once\n"
+           "                      per kernel: default (the build's choice, the widest the CPU\n"
+           "                      runs: the default), avx512 (batches in packets of 16 rays; an\n"
+           "                      error where the CPU lacks it), avx2 (KDRT_BUILD_AVX2_KERNEL:\n"
+           "                      packets of 8), scalar (KDRT_BUILD_SCALAR_KERNEL). The Kernel\n"
+           "                      column names the kernel that ran; Embree's rows come once,\n"
+           "                      their Kernel empty\n"
            "  --rays KIND         primary | diffuse (cosine bounces from the primary hits, spawned\n"
            "                      with kdrt_spawn_ray) | random (uniform rays through the scene box)\n"
            "                      | shadow (from the primary hits to a point light above the\n"
@@ -291,7 +351,7 @@ std::string usage() {
            "grazing per hit) whose nearest hit is the triangle they leave; NaiveSelfHits, the same\n"
            "for the same rays started exactly at the hit point, with no offset.\n"
            "--sweep, --leaf-sizes, --rays, --compare, --sah-costs, --quality, --query, --start,\n"
-           "--batch, --batch-size, --tile and --shuffle do not apply.\n"
+           "--batch, --batch-size, --tile, --shuffle and --kernel do not apply.\n"
            "\n"
            "--scene merged,field measures kdrt_scene against one tree over the same triangles,\n"
            "with primary and diffuse rays (the frame's, made on the one tree) through both:\n"
@@ -335,11 +395,12 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         unsigned long long n = 0;
         const bool ray_order_option = arg == "--batch" || arg == "--batch-size" || arg == "--tile" || arg == "--shuffle";
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--compare" || arg == "--sah-costs" ||
-            arg == "--quality" || arg == "--query" || arg == "--start" || arg == "--sweep" || ray_order_option)
+            arg == "--quality" || arg == "--query" || arg == "--start" || arg == "--sweep" || arg == "--kernel" ||
+            ray_order_option)
             csv_only_option = arg;
         if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--sah-costs" || arg == "--quality" ||
             arg == "--query" || arg == "--start" || arg == "--builder" || arg == "--intersector" || arg == "--subdivide" ||
-            arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep" || ray_order_option)
+            arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep" || arg == "--kernel" || ray_order_option)
             not_scene_option = arg;
         if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
         repeat_given = repeat_given || arg == "--repeat";
@@ -456,6 +517,14 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             tile_given = true;
         } else if (arg == "--shuffle") {
             out.shuffle = true;
+        } else if (arg == "--kernel") {
+            if (!value(v)) return false;
+            if (!parse_choices<std::string>(
+                    v, {{"default", "default"}, {"avx512", "avx512"}, {"avx2", "avx2"}, {"scalar", "scalar"}},
+                    out.kernels)) {
+                error = "--kernel wants default, avx512, avx2 or scalar, separated by commas, got '" + v + "'";
+                return false;
+            }
         } else if (arg == "--scene") {
             if (!value(v)) return false;
             if (!parse_choices<std::string>(v, {{"merged", "merged"}, {"field", "field"}}, out.scenes)) {
@@ -826,7 +895,7 @@ std::vector<std::string> starts_for(const Options &opt) {
 std::string csv_header() {
     return "Mesh;MaxLeafSize;ElapsedMs;Builder;Triangles;BuildMs;TraceMs;MRaysPerSec;Nodes;Leaves;MaxDepth;"
            "AvgLeafTriangles;TreeBytes;Mismatches;ReferenceRays;Intersector;SahCost;SahCosts;BuildThreads;Quality;"
-           "Query;Start;Call";
+           "Query;Start;Call;Kernel";
 }
 
 std::string csv_row(const Row &row) {
@@ -852,7 +921,7 @@ std::string csv_row(const Row &row) {
         line.append(buf, size_t(n));
     }
     return line + ";" + row.sah_costs + ";" + std::to_string(row.build_threads) + ";" + row.quality + ";" +
-           row.query + ";" + row.start + ";" + row.call;
+           row.query + ";" + row.start + ";" + row.call + ";" + row.kernel;
 }
 
 // ---- kdrt-bench --accuracy ----

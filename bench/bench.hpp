@@ -44,6 +44,9 @@ struct Options {
     std::vector<std::string> builders;
     std::vector<SahCosts> sah_costs;   // --sah-costs: a SAH variant each; empty: kdrt.h's defaults
     std::vector<kdrt_build_quality> qualities;  // --quality: a SAH variant each; empty: the default
+    // --kernel: "default", "avx512", "avx2" and/or "scalar", a variant of every kdrt build each,
+    // in the order given (kernel_flags()); "default" is the build's own choice
+    std::vector<std::string> kernels{"default"};
     std::vector<std::string> queries{"plain"};  // --query: "plain" and/or "filter", traced in turn
     // --start: "cell" and/or "root", traced in turn; empty: starts_for()'s default
     std::vector<std::string> starts;
@@ -86,13 +89,26 @@ std::vector<kdrt_intersector> intersectors_for(const Options &opt);
 // "fast", "medium", "high" as --quality and the Quality column spell them ("default" for 0).
 const char *quality_name(kdrt_build_quality quality);
 
+// The kdrt_build_options.flags that ask for a --kernel name's kernel: KDRT_BUILD_AVX2_KERNEL for
+// "avx2", KDRT_BUILD_SCALAR_KERNEL for "scalar", 0 for "avx512" and "default" (the widest the CPU
+// runs).
+uint32_t kernel_flags(const std::string &kernel);
+// "scalar", "avx2", "avx512": kdrt_tree_stats.kernel as the Kernel column spells it.
+const char *kernel_name(kdrt_kernel kernel);
+// false with a message naming --kernel when a kernel of the list other than "default" is not the
+// one a tree built with its kernel_flags() runs (the CPU, or this build of kdrt, lacks it: a tree
+// asked for avx512 runs avx2 or scalar). Builds a tree of one triangle per name; nothing timed.
+bool check_kernels(const std::vector<std::string> &kernels, std::string &error);
+
 // What a run builds, in order: each builder of opt.builders, the SAH builder once per quality of
-// opt.qualities (or once at the default) and triple of opt.sah_costs (or once with the defaults).
+// opt.qualities (or once at the default) and triple of opt.sah_costs (or once with the defaults),
+// each of those once per kernel of opt.kernels.
 struct BuildVariant {
     std::string builder;          // Builder column: median or sah
-    kdrt_build_options options;   // builder and SAH costs set; leaf size and intersector are not
+    kdrt_build_options options;   // builder, SAH costs and kernel flags set; leaf size and intersector are not
     std::string sah_costs;        // SahCosts column: sah_costs_label() for sah, empty for median
     std::string quality;          // Quality column: quality_name() for sah, empty for median
+    std::string kernel;           // the --kernel name asked for (the Kernel column says what ran)
 };
 std::vector<BuildVariant> build_variants(const Options &opt);
 
@@ -194,6 +210,7 @@ struct Row {
     std::string query;                 // Query column: "plain" or "filter"; empty on Embree rows
     std::string start;                 // Start column: "cell" or "root"; empty on Embree rows
     std::string call = "single";       // Call column: call_name() of how the rays were handed over
+    std::string kernel;                // Kernel column: kernel_name() of the tree's kernel; empty on Embree rows
 };
 std::string csv_header();
 std::string csv_row(const Row &row);

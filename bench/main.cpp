@@ -569,6 +569,11 @@ int run(int argc, char **argv) {
         std::fprintf(stderr, "kdrt-bench: %s\n", error.c_str());
         return 1;
     }
+    // A kernel this CPU cannot run is refused before any work, as a bad option is.
+    if (!kb::check_kernels(opt.kernels, error)) {
+        std::fprintf(stderr, "kdrt-bench: %s\n", error.c_str());
+        return 2;
+    }
     if (opt.compare_embree && !kb::embree_available()) {
         std::fprintf(stderr, "kdrt-bench: --compare embree is unavailable: this kdrt-bench was built without Embree "
                              "(install libembree-dev and configure again)\n");
@@ -667,6 +672,8 @@ int run(int argc, char **argv) {
                               kdrt_variants.size() +
                           peer_qualities.size();
     const std::string repetitions = opt.repeat > 1 ? ", " + std::to_string(opt.repeat) + " times" : "";
+    // The progress lines name each build's kernel when --kernel asks for more than the default.
+    const bool kernels_named = opt.kernels != std::vector<std::string>{"default"};
 
     std::string write_error;
     const auto write_failed = [&] {
@@ -724,7 +731,8 @@ int run(int argc, char **argv) {
                     if (rep == 0)
                         progress.step(in.label + ": " + variant.builder +
                                       (opt.qualities.empty() ? "" : " " + variant.quality) +
-                                      (opt.sah_costs.empty() ? "" : " " + variant.sah_costs) + " leaf " +
+                                      (opt.sah_costs.empty() ? "" : " " + variant.sah_costs) +
+                                      (kernels_named ? " " + variant.kernel : "") + " leaf " +
                                       std::to_string(leaf) +
                                       (opt.intersectors.empty() ? "" : std::string(" ") + kb::intersector_name(intersector)) +
                                       ": building and tracing " + kb::frame_rays(opt, opt.rays) +
@@ -746,6 +754,7 @@ int run(int argc, char **argv) {
                     row.builder = variant.builder;
                     row.sah_costs = variant.sah_costs;
                     row.quality = variant.quality;
+                    row.kernel = kb::kernel_name(row.stats.kernel);  // the kernel that runs, as the tree says
                     row.intersector = kb::intersector_name(intersector);
                     row.build_threads = options.builder == KDRT_BUILDER_MEDIAN ? 1 : build_pool.threads();
                     row.max_leaf_size = int(leaf);
@@ -780,8 +789,8 @@ int run(int argc, char **argv) {
                             const std::string differences = batch_differences(batch_answers, single_answers, shadow);
                             if (!differences.empty()) {
                                 progress.note("kdrt-bench: " + in.label + ": " + variant.builder + " leaf " +
-                                              std::to_string(leaf) + ", start " + start + ", query " + query + ": " +
-                                              differences);
+                                              std::to_string(leaf) + ", kernel " + row.kernel + ", start " + start +
+                                              ", query " + query + ": " + differences);
                                 ++failures;
                             }
                         }
@@ -813,6 +822,7 @@ int run(int argc, char **argv) {
                     row.intersector.clear();  // Embree's own test
                     row.query.clear();
                     row.start.clear();
+                    row.kernel.clear();  // Embree's own code: no kdrt kernel
                     row.max_leaf_size = -1;
                     row.has_tree_stats = false;
                     row.call = kb::call_name(peer.call);
