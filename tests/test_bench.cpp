@@ -493,7 +493,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
                                                 "TraceMs", "MRaysPerSec", "Nodes", "Leaves", "MaxDepth",
                                                 "AvgLeafTriangles", "TreeBytes", "Mismatches", "ReferenceRays",
                                                 "Intersector", "SahCost", "SahCosts", "BuildThreads", "Quality",
-                                                "Query", "Start", "Call"});
+                                                "Query", "Start", "Call", "Kernel"});
 
     kb::Row row;
     row.mesh = "NEFERTITI";
@@ -534,9 +534,13 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     CHECK(f[17].empty());  // median: no cost constants of its own
     CHECK(f[19].empty());  // nor a quality
     CHECK(f[22] == "single");  // a call a ray, unless the row says otherwise
+    CHECK(f[23].empty());      // Kernel: what the row says, main's kernel_name() of the tree's
     row.call = kb::call_name(kb::Call::batch);
-    CHECK(split(kb::csv_row(row), ';').back() == "batch");
+    CHECK(split(kb::csv_row(row), ';')[22] == "batch");
     row.call = "single";
+    row.kernel = kb::kernel_name(KDRT_KERNEL_AVX2);
+    CHECK(split(kb::csv_row(row), ';').back() == "avx2");
+    row.kernel.clear();
     row.quality = "fast";
     CHECK(split(kb::csv_row(row), ';')[19] == "fast");
     row.quality.clear();
@@ -554,7 +558,7 @@ TEST_CASE("CSV keeps the original's first three columns", "[bench]") {
     const std::vector<std::string> e = split(kb::csv_row(row), ';');
     REQUIRE(e.size() == columns.size());
     CHECK(e[1] == "-1");
-    for (int c : {8, 9, 10, 11, 12, 16}) CHECK(e[size_t(c)].empty());  // no kd-tree statistics for Embree
+    for (int c : {8, 9, 10, 11, 12, 16, 23}) CHECK(e[size_t(c)].empty());  // no kd-tree statistics or kernel for Embree
     row.intersector.clear();  // Embree's own triangle test
     CHECK(split(kb::csv_row(row), ';')[15].empty());
 }
@@ -606,6 +610,63 @@ TEST_CASE("bench option --batch: the calls, a row each, and the rays in tiles", 
         });
         CHECK(named);
     }
+}
+
+TEST_CASE("bench option --kernel: a variant of every kdrt build per kernel, named in Kernel", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    // Without it: the build's own choice, one variant, no kernel flag.
+    REQUIRE(parse({}, opt, error));
+    CHECK(opt.kernels == std::vector<std::string>{"default"});
+    std::vector<kb::BuildVariant> v = kb::build_variants(opt);
+    REQUIRE(v.size() == 1);
+    CHECK(v[0].kernel == "default");
+    CHECK(v[0].options.flags == 0u);
+
+    // In the order given, in either case; each build once per kernel, kernels innermost.
+    REQUIRE(parse({"--kernel", "AVX2,scalar,Avx512,default"}, opt, error));
+    CHECK(opt.kernels == std::vector<std::string>{"avx2", "scalar", "avx512", "default"});
+    REQUIRE(parse({"--kernel", "avx2,avx512", "--builder", "median,sah", "--quality", "fast,high"}, opt, error));
+    v = kb::build_variants(opt);
+    REQUIRE(v.size() == 6);  // median, sah fast, sah high: each with avx2 then avx512
+    CHECK((v[0].builder == "median" && v[0].kernel == "avx2" && v[0].options.flags == KDRT_BUILD_AVX2_KERNEL));
+    CHECK((v[1].builder == "median" && v[1].kernel == "avx512" && v[1].options.flags == 0u));
+    CHECK((v[2].quality == "fast" && v[2].kernel == "avx2"));
+    CHECK((v[3].quality == "fast" && v[3].kernel == "avx512"));
+    CHECK((v[5].quality == "high" && v[5].options.builder == KDRT_BUILDER_SAH && v[5].kernel == "avx512"));
+    CHECK(kb::kernel_flags("scalar") == KDRT_BUILD_SCALAR_KERNEL);
+    CHECK(kb::kernel_flags("avx2") == KDRT_BUILD_AVX2_KERNEL);
+    CHECK(kb::kernel_flags("avx512") == 0u);
+    CHECK(kb::kernel_flags("default") == 0u);
+    CHECK(std::string(kb::kernel_name(KDRT_KERNEL_SCALAR)) == "scalar");
+    CHECK(std::string(kb::kernel_name(KDRT_KERNEL_AVX2)) == "avx2");
+    CHECK(std::string(kb::kernel_name(KDRT_KERNEL_AVX512)) == "avx512");
+
+    // The kernels a tree built with each name's flags runs: the scalar kernel is always there, and
+    // a named kernel passes the check exactly when such a tree runs it.
+    CHECK(kb::check_kernels({"default", "scalar"}, error));
+    for (const char *kernel : {"avx2", "avx512"}) {
+        kt::TreePtr tree = kt::build(kt::sphere(4, 8, 1.0), 4, kt::kSahBuilders[0], kb::kernel_flags(kernel));
+        kdrt_tree_stats stats;
+        kdrt_tree_get_stats(tree.get(), &stats);
+        const bool runs = std::string(kb::kernel_name(stats.kernel)) == kernel;
+        INFO(kernel << " runs here: " << runs);
+        error.clear();
+        CHECK(kb::check_kernels({kernel}, error) == runs);
+        if (!runs) CHECK(error.find("--kernel " + std::string(kernel)) != std::string::npos);
+    }
+
+    const std::vector<std::vector<const char *>> bad = {
+        {"--kernel", "avx"},  {"--kernel", "avx2,"}, {"--kernel", ""}, {"--kernel"}, {"--kernel", "sse"},
+        {"--accuracy", "--kernel", "avx2"}, {"--scene", "merged", "--kernel", "scalar"}};
+    for (const auto &args : bad) {
+        INFO(args[0] << " " << (args.size() > 1 ? args[1] : ""));
+        error.clear();
+        CHECK_FALSE(parse(args, opt, error));
+        CHECK(error.find("--kernel") != std::string::npos);  // the message names the option
+    }
+    CHECK_FALSE(parse({"--kernel", "AVX3"}, opt, error));
+    CHECK(error.find("'AVX3'") != std::string::npos);  // named as it was given
 }
 
 TEST_CASE("ray order: tiles row by row, pixels row by row in each, shadow and diffuse rays with their pixels", "[bench]") {
