@@ -65,6 +65,18 @@ def choose_sah_costs(rows, wanted):
     return found[0] if found else ""
 
 
+def one_kernel(rows):
+    """Exits when the kd-tree rows ran more than one kernel (kdrt-bench --kernel's Kernel column;
+    older CSVs have none): the medians would mix them."""
+    found = []
+    for r in rows:
+        if r.get("Builder") != "embree" and r.get("Kernel") and r["Kernel"] not in found:
+            found.append(r["Kernel"])
+    if len(found) > 1:
+        sys.exit(f"{TOOL}: the CSVs hold kd-tree rows of several kernels ({', '.join(found)}): give CSVs of one "
+                 "kernel (kdrt-bench --kernel), or bench/batch_table.py, which keeps them apart")
+
+
 def summarise(rows, leaf_size, sah_costs):
     """Per mesh, in first-seen order: a dict of the table's figures (None where not measured).
 
@@ -181,6 +193,7 @@ def load_summary(args):
     rows = load(args.primary, "primary") + load(args.diffuse, "diffuse") + load(args.shadow, "shadow")
     if not rows:
         sys.exit(f"{TOOL}: the CSVs hold no rows")
+    one_kernel(rows)
     costs = choose_sah_costs(rows, args.sah_costs)
     summary = summarise(rows, args.leaf_size, costs)
     return summary, costs
