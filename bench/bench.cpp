@@ -127,7 +127,7 @@ const char *kernel_name(kdrt_kernel kernel) {
     }
 }
 
-bool check_kernels(const std::vector<std::string> &kernels, std::string &error) {
+bool kernel_that_runs(const std::string &kernel, kdrt_kernel &runs, std::string &error) {
     const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
     const uint32_t indices[3] = {0, 1, 2};
     kdrt_triangles one = {};
@@ -135,23 +135,29 @@ bool check_kernels(const std::vector<std::string> &kernels, std::string &error) 
     one.indices = indices;
     one.vertex_count = 3;
     one.triangle_count = 1;
+    kdrt_build_options options = kdrt_default_build_options();
+    options.flags = kernel_flags(kernel);
+    kdrt_tree *tree = nullptr;
+    const kdrt_result r = kdrt_tree_build(&one, &options, &tree, nullptr);
+    if (r != KDRT_SUCCESS) {
+        error = "--kernel " + kernel + ": a test tree of one triangle did not build: " + kdrt_result_string(r);
+        return false;
+    }
+    kdrt_tree_stats stats;
+    kdrt_tree_get_stats(tree, &stats);
+    kdrt_tree_free(tree);
+    runs = stats.kernel;
+    return true;
+}
+
+bool check_kernels(const std::vector<std::string> &kernels, std::string &error) {
     for (const std::string &kernel : kernels) {
         if (kernel == "default") continue;
-        kdrt_build_options options = kdrt_default_build_options();
-        options.flags = kernel_flags(kernel);
-        kdrt_tree *tree = nullptr;
-        const kdrt_result r = kdrt_tree_build(&one, &options, &tree, nullptr);
-        if (r != KDRT_SUCCESS) {
-            error = "--kernel " + kernel + ": a test tree of one triangle did not build: " + kdrt_result_string(r);
-            return false;
-        }
-        kdrt_tree_stats stats;
-        kdrt_tree_get_stats(tree, &stats);
-        kdrt_tree_free(tree);
-        const std::string runs = kernel_name(stats.kernel);
-        if (runs != kernel) {
+        kdrt_kernel runs = KDRT_KERNEL_SCALAR;
+        if (!kernel_that_runs(kernel, runs, error)) return false;
+        if (kernel_name(runs) != kernel) {
             error = "--kernel " + kernel + " is not available here: this CPU (or this build of kdrt) lacks it, and a "
-                    "tree asked for it would run the " + runs + " kernel";
+                    "tree asked for it would run the " + kernel_name(runs) + " kernel";
             return false;
         }
     }

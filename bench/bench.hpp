@@ -95,6 +95,9 @@ const char *quality_name(kdrt_build_quality quality);
 uint32_t kernel_flags(const std::string &kernel);
 // "scalar", "avx2", "avx512": kdrt_tree_stats.kernel as the Kernel column spells it.
 const char *kernel_name(kdrt_kernel kernel);
+// runs: the kernel a tree built with kernel_flags(kernel) runs, from a tree of one triangle;
+// false with a message when that tree does not build.
+bool kernel_that_runs(const std::string &kernel, kdrt_kernel &runs, std::string &error);
 // false with a message naming --kernel when a kernel of the list other than "default" is not the
 // one a tree built with its kernel_flags() runs (the CPU, or this build of kdrt, lacks it: a tree
 // asked for avx512 runs avx2 or scalar). Builds a tree of one triangle per name; nothing timed.

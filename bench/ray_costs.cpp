@@ -14,6 +14,7 @@
 #include "common/random.hpp"
 #include "ray_counts.hpp"
 
+#include <cctype>
 #include <ctime>
 
 #include <algorithm>
@@ -25,7 +26,8 @@
 namespace {
 
 const char *const kUsage =
-    "usage: kdrt-ray-costs [MESH...] [--size WxH] [--repeat N] [--subdivide N]\n"
+    "usage: kdrt-ray-costs [MESH...] [--size WxH] [--repeat N] [--subdivide N] [--tile WxH]\n"
+    "                      [--kernel default|avx512|avx2|scalar]\n"
     "\n"
     "For each mesh (default: the seed nefertiti and the Stanford bunny from the mesh folder, else\n"
     "a generated torus), prints a Markdown table: per class of ray, the rays in it, the inner\n"
@@ -33,14 +35,19 @@ const char *const kUsage =
     "nodes (inner nodes passed going down from a rope) and restarts (rope walks handed to the\n"
     "walk from the root) a ray takes on average, and its time in ns (thread CPU time, best of N\n"
     "passes). Diffuse and shadow rays from their start cells (kdrt_spawn_ray's) and from the\n"
-    "root. SAH tree, leaf size 4, one thread.\n"
-    "Then a table of batches (kdrt_intersect_batch, kdrt_occluded_batch): per mesh and ray set, the\n"
-    "share of rays that walked in packets, and per packet the inner nodes it stepped through, the\n"
-    "lanes walking at a step, the leaves, the blocks culled and the triangles tested against its\n"
-    "rays, beside the batch's and the single calls' ns per ray.\n"
+    "root. SAH tree, leaf size 4, one thread; a line above the tables names the kernel it runs.\n"
+    "Then a table of batches (kdrt_intersect_batch, kdrt_occluded_batch) of the frame's rays in\n"
+    "tiles: per mesh and ray set, the share of rays that walked in packets, and per packet the\n"
+    "inner nodes it stepped through, the lanes walking at a step, the leaves, the blocks culled and\n"
+    "the triangles tested against its rays, beside the batch's and the single calls' ns per ray.\n"
     "  --size WxH   the frame (default 400x400)\n"
     "  --repeat N   timed passes per class, the fastest kept (default 5)\n"
     "  --subdivide N  split every triangle in 4, N times, before building (default 0)\n"
+    "  --tile WxH   the batch table's ray order: tiles of W x H pixels, tiles row by row, pixels\n"
+    "               row by row in each (default 4x4: 16 rays, an AVX-512 packet's worth)\n"
+    "  --kernel K   the kernel the trees run (the timed one and the counting copy): default (the\n"
+    "               build's choice, the widest the CPU runs), avx512 (an error where the CPU\n"
+    "               lacks it), avx2 (KDRT_BUILD_AVX2_KERNEL), scalar (KDRT_BUILD_SCALAR_KERNEL)\n"
     "The mesh folder: {MESH_DIR}.\n"
     "Exit status: 0 success, 1 failure (unreadable mesh, lost output), 2 a bad command line.\n";
 
@@ -107,25 +114,28 @@ double occluded_ns_per_ray(const kdrt_tree *tree, const std::vector<kdrt_ray> &r
 
 std::string batches_error;
 
-// The batch table's rows of one mesh: its frame's rays as a renderer hands them over (in 4x2
-// tiles), shuffled, the shadow rays of those pixels, and their diffuse bounces.
+// The batch table's rows of one mesh: its frame's rays as a renderer hands them over (in tiles of
+// tile_width x tile_height pixels), shuffled, the shadow rays of those pixels, and their diffuse
+// bounces.
 std::string batch_rows(const kb::Scene &scene, const kdrt_triangles &view, const kdrt_build_options &options,
-                       const kdrt_tree *tree, unsigned width, unsigned height, unsigned repeat)
+                       const kdrt_tree *tree, unsigned width, unsigned height, unsigned repeat, unsigned tile_width,
+                       unsigned tile_height)
 {
+    const std::string tiles = " in " + std::to_string(tile_width) + "x" + std::to_string(tile_height) + " tiles";
     struct Set {
-        const char *name;
+        std::string name;
         kb::RayKind kind;
         bool shuffle, any_hit;
-    } const sets[] = {{"primary rays in 4x2 tiles", kb::RayKind::primary, false, false},
+    } const sets[] = {{"primary rays" + tiles, kb::RayKind::primary, false, false},
                       {"the same, shuffled", kb::RayKind::primary, true, false},
-                      {"shadow rays in 4x2 tiles, from the root", kb::RayKind::shadow, false, true},
-                      {"diffuse rays in 4x2 tiles, from the root", kb::RayKind::diffuse, false, false}};
+                      {"shadow rays" + tiles + ", from the root", kb::RayKind::shadow, false, true},
+                      {"diffuse rays" + tiles + ", from the root", kb::RayKind::diffuse, false, false}};
     std::string rows;
     for (const Set &set : sets) {
         std::vector<uint32_t> pixels;
         const std::vector<kdrt_ray> made = kb::make_rays(scene, set.kind, width, height, tree, 1, &pixels);
         std::vector<kdrt_ray> rays;
-        for (size_t k : kb::ray_order(pixels, width, 4, 2, set.shuffle, 7)) {
+        for (size_t k : kb::ray_order(pixels, width, tile_width, tile_height, set.shuffle, 7)) {
             rays.push_back(made[k]);
             rays.back().cell = 0;  // hinted rays would take their rope walks, alone
         }
@@ -138,7 +148,7 @@ std::string batch_rows(const kb::Scene &scene, const kdrt_triangles &view, const
             std::snprintf(per_packet, sizeof per_packet, "%.1f | %.2f | %.2f | %.2f | %.2f", work.packet_steps / packets,
                           double(work.packet_step_lanes) / double(work.packet_steps), work.packet_leaves / packets,
                           work.packet_blocks / packets, work.packet_triangles / packets);
-        std::snprintf(line, sizeof line, "| %s | %s | %zu | %.0f%% | %s | %.0f | %.0f |\n", scene.name.c_str(), set.name,
+        std::snprintf(line, sizeof line, "| %s | %s | %zu | %.0f%% | %s | %.0f | %.0f |\n", scene.name.c_str(), set.name.c_str(),
                       rays.size(), 100.0 * double(work.packet_lanes) / n, per_packet,
                       batch_ns_per_ray(tree, rays, repeat, set.any_hit),
                       set.any_hit ? occluded_ns_per_ray(tree, rays, repeat) : ns_per_ray(tree, rays, repeat, false));
@@ -156,7 +166,8 @@ int fail(const std::string &message)
 int run(int argc, char **argv)
 {
     std::vector<std::string> paths;
-    unsigned width = 400, height = 400, repeat = 5, subdivide = 0;
+    unsigned width = 400, height = 400, repeat = 5, subdivide = 0, tile_width = 4, tile_height = 4;
+    std::string kernel = "default";
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
         auto value = [&]() -> std::string {
@@ -177,12 +188,28 @@ int run(int argc, char **argv)
         } else if (arg == "--subdivide") {
             const std::string v = value();
             if (!common::parse_count(v, 4, subdivide)) throw UsageError{"--subdivide wants 0 to 4, got '" + v + "'"};
+        } else if (arg == "--tile") {
+            const std::string v = value();
+            if (!common::parse_size(v, 256, tile_width, tile_height))
+                throw UsageError{"--tile wants WxH with 1 <= W, H <= 256 (pixels), got '" + v + "'"};
+        } else if (arg == "--kernel") {
+            const std::string v = value();
+            kernel = v;
+            for (char &c : kernel) c = char(std::tolower(static_cast<unsigned char>(c)));
+            if (kernel != "default" && kernel != "avx512" && kernel != "avx2" && kernel != "scalar")
+                throw UsageError{"--kernel wants default, avx512, avx2 or scalar, got '" + v + "'"};
         } else if (arg.size() > 1 && arg[0] == '-') {
             throw UsageError{"unknown option '" + arg + "' (see --help)"};
         } else {
             paths.push_back(arg);
         }
     }
+    // The kernel asked for, refused before any work where this CPU lacks it, as a bad option is;
+    // the same flags reach the timed trees and the counting copy's (ray_counts.cpp).
+    std::string kernel_error;
+    kdrt_kernel runs = KDRT_KERNEL_SCALAR;
+    if (!kb::check_kernels({kernel}, kernel_error)) throw UsageError{kernel_error};
+    if (!kb::kernel_that_runs(kernel, runs, kernel_error)) return fail(kernel_error);
     std::vector<common::Mesh> meshes;
     if (paths.empty()) {
         for (const char *name : {"/seed/nefertiti.off", "/common/stanford-bunny.obj"}) {
@@ -200,6 +227,7 @@ int run(int argc, char **argv)
     }
 
     std::vector<std::string> tables;
+    std::printf("Kernel: %s (--kernel %s).\n\n", kb::kernel_name(runs), kernel.c_str());
     std::printf("| Mesh | Rays | Count | Inner nodes | Leaves (empty) | Triangle tests | Rope steps | Rope nodes | "
                 "Restarts | ns per ray |\n");
     std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
@@ -208,6 +236,7 @@ int run(int argc, char **argv)
         const kb::Scene scene = kb::make_scene(mesh, mesh.name);
         const kdrt_triangles view = scene.geometry.view();
         kdrt_build_options options = kdrt_default_build_options();
+        options.flags = kb::kernel_flags(kernel);  // passed on to the counting copy's builds too
         kdrt_tree *tree = nullptr;
         const kdrt_result built = kdrt_tree_build(&view, &options, &tree, nullptr);
         if (built != KDRT_SUCCESS) return fail("cannot build the tree over " + scene.name + ": " + kdrt_result_string(built));
@@ -269,7 +298,7 @@ int run(int argc, char **argv)
                         work.triangle_tests / n, work.rope_steps / n, work.rope_nodes / n, work.restarts / n,
                         ns_per_ray(tree, c.rays, repeat, c.locate));
         }
-        tables.push_back(batch_rows(scene, view, options, tree, width, height, repeat));
+        tables.push_back(batch_rows(scene, view, options, tree, width, height, repeat, tile_width, tile_height));
         kdrt_tree_free(tree);
     }
     if (!batches_error.empty()) return fail(batches_error);
