@@ -47,10 +47,11 @@ kdrt_kernel kernel_of(uint32_t flags)
     return s.kernel;
 }
 
+
+#if !defined(KDRT_NO_SIMD)  // what compares the kernels
 // The default kernel is a SIMD one (AVX2 or AVX-512).
 bool simd_here() { return kernel_of(0) != KDRT_KERNEL_SCALAR; }
 
-#if !defined(KDRT_NO_SIMD)  // what compares the kernels
 // Bit for bit: the same return value and, on a hit, the same bits of t, u, v and the same
 // triangle (no -0 == +0 leniency here, unlike kt::same_hit).
 bool identical(int ra, const kdrt_hit &a, int rb, const kdrt_hit &b)
