@@ -19,9 +19,9 @@ function(check_whole_rows file min_rows)
   foreach(row IN LISTS lines)
     string(REGEX REPLACE "[^|]" "" separators "${row}")
     string(LENGTH "${separators}" c)
-    # The last five columns: BuildThreads, Quality (empty for the median builder), Query, Start,
-    # Call.
-    if(NOT c EQUAL columns OR NOT row MATCHES "^[A-Z0-9_]+\\|[0-9]+\\|[0-9]+\\|median\\|.*\\|[0-9]+\\|[a-z]*\\|plain\\|root\\|single$")
+    # The last six columns: BuildThreads, Quality (empty for the median builder), Query, Start,
+    # Call, Kernel.
+    if(NOT c EQUAL columns OR NOT row MATCHES "^[A-Z0-9_]+\\|[0-9]+\\|[0-9]+\\|median\\|.*\\|[0-9]+\\|[a-z]*\\|plain\\|root\\|single\\|(scalar|avx2|avx512)$")
       message(FATAL_ERROR "${file}: incomplete or wrong row: ${row}")
     endif()
   endforeach()
