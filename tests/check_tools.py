@@ -281,8 +281,11 @@ class MeshFolder(ProgramTest):
         done = self.check("kdrt-render-mesh", ["--size", "8x6", "-o", out], 0, env=self.env)
         self.assertIn(f"mesh: {bunny}\n", done.stderr)
         done = self.check("kdrt-ray-costs", ["--size", "8x8", "--repeat", "1"], 0, env=self.env)
-        # Two tables, the rays' and the batches', each naming the default meshes.
-        tables = done.stdout.strip().split("\n\n")
+        # A line naming the kernel, then two tables, the rays' and the batches', each naming the
+        # default meshes.
+        parts = done.stdout.strip().split("\n\n")
+        self.assertRegex(parts[0], r"^Kernel: (scalar|avx2|avx512) \(--kernel default\)\.$")
+        tables = parts[1:]
         self.assertEqual(len(tables), 2)
         for table in tables:
             self.assertEqual(sorted({line.split("|")[1].strip() for line in table.splitlines()[2:]}),
