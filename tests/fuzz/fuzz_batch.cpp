@@ -70,7 +70,10 @@ kdrt_build_options make_options(FuzzedDataProvider &in) {
     o.intersector = in.ConsumeBool() ? KDRT_INTERSECTOR_WATERTIGHT : KDRT_INTERSECTOR_FAST;
     static const uint32_t leaves[] = {1, 2, 4, 8, 0};
     o.max_leaf_size = leaves[in.ConsumeIntegralInRange<int>(0, 4)];
-    o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES | (in.ConsumeIntegralInRange<int>(0, 3) == 0 ? uint32_t(KDRT_BUILD_SCALAR_KERNEL) : 0u);
+    // The kernel: scalar, AVX2 (packets of 8 where the default is AVX-512), or the default.
+    const int kernel = in.ConsumeIntegralInRange<int>(0, 3);
+    o.flags = KDRT_BUILD_SKIP_INVALID_TRIANGLES | (kernel == 0 ? uint32_t(KDRT_BUILD_SCALAR_KERNEL) : 0u) |
+              (kernel == 1 ? uint32_t(KDRT_BUILD_AVX2_KERNEL) : 0u);
     return o;
 }
 
