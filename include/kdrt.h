@@ -4204,6 +4204,31 @@ static unsigned kdrt__same_bit(unsigned bits, unsigned first)
    shears span more than this, goes one by one: its rays part ways soon. */
 #define KDRT__PACKET_SPREAD 0.0625f
 
+/* How many of rays[0 .. n) have the first one's direction signs: sign bits, in scalar code, so
+   that incoherent rays run no vector code at all. (After AVX-512 code, Intel cores run slower
+   for a while: the single-ray walks of shuffled rays were 5% slower with a packet tried every
+   65 groups.) */
+static uint32_t kdrt__same_signs(const kdrt_ray *rays, uint32_t n)
+{
+    uint32_t i, same = 0, first = 0;
+    for (i = 0; i < n; ++i) {
+        uint32_t bits[3];
+        memcpy(bits, rays[i].dir, sizeof bits);
+        bits[0] = (bits[0] >> 31) | (bits[1] >> 31) << 1 | (bits[2] >> 31) << 2;
+        if (i == 0) first = bits[0];
+        same += bits[0] == first;
+    }
+    return same;
+}
+
+/* After a group that formed no packet: the groups to skip before trying again, twice as many
+   each time from the second failure on (up to 64). */
+static uint32_t kdrt__failed_packet(uint32_t *failures)
+{
+    ++*failures;
+    return *failures < 2 ? 0u : *failures < 8 ? 1u << (*failures - 2) : 64u;
+}
+
 /* Whether p's lanes walk together: enough of them, their origins and shears close. */
 static int kdrt__packet_together(const kdrt_tree *tree, const kdrt__packet *p)
 {
@@ -5646,9 +5671,11 @@ KDRT__W_TARGET static KDRT__FORCEINLINE void kdrt__v_range_avx512(__m512 x, unsi
 #define kdrt__v_range kdrt__v_range_avx512
 #endif
 
-/* A node for later, with the lanes that visit it and their ranges there. */
+/* A node for later, with the lanes that visit it and their ranges there. Floats, not vectors:
+   a vector's alignment would pad each entry to 192 bytes (AVX-512), and the walk's stack is the
+   most of a batch call's stack. */
 typedef struct KDRT__W(kdrt__packet_todo) {
-    kdrt__v t0, t1;
+    float t0[KDRT__PACKET_WIDTH], t1[KDRT__PACKET_WIDTH];
     uint32_t node;
     unsigned lanes;
 } KDRT__W(kdrt__packet_todo);
@@ -5727,12 +5754,11 @@ KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_leaf)(const kdrt_tree *tree,
    range). The children are visited in the packet's order, the side the rays come from first; a
    lane whose origin lies off the plane at a distance that rounds to t = 0 would visit them the
    other way round: it goes back to the single-ray walk. Inlined twice, so that any_hit is a
-   constant. */
+   constant; the two share the caller's stack. */
 KDRT__W_TARGET static KDRT__FORCEINLINE void KDRT__W(kdrt__packet_walk_from)(
     const kdrt_tree *tree, kdrt__packet *p, kdrt__v t0, kdrt__v t1, int any_hit,
-    kdrt_traversal_stats *stats)
+    KDRT__W(kdrt__packet_todo) *stack, kdrt_traversal_stats *stats)
 {
-    KDRT__W(kdrt__packet_todo) stack[KDRT_MAX_DEPTH];
     const kdrt__v zero = kdrt__v_zero();
     const kdrt__v below_slack = kdrt__v_set1(1.0f - KDRT__T_SLACK);
     const kdrt__v above_slack = kdrt__v_set1(1.0f + KDRT__T_SLACK);
@@ -5770,7 +5796,7 @@ KDRT__W_TARGET static KDRT__FORCEINLINE void KDRT__W(kdrt__packet_walk_from)(
                 /* both, from the plane on (the origin on the plane: over the whole range) */
                 const kdrt__vm both = kdrt__m_andnot(kdrt__m_or(one_side, on_plane), kdrt__m_all());
                 KDRT_ASSERT(sp < KDRT_MAX_DEPTH);
-                stack[sp].t0 = kdrt__v_blend(t0, lo, both), stack[sp].t1 = t1;
+                kdrt__v_store(stack[sp].t0, kdrt__v_blend(t0, lo, both)), kdrt__v_store(stack[sp].t1, t1);
                 stack[sp].node = negative ? below : above, stack[sp].lanes = second, ++sp;
                 t1 = kdrt__v_blend(kdrt__v_blend(t1, hi, both), zero, on_plane);
                 node = negative ? above : below, lanes = first;
@@ -5810,10 +5836,10 @@ KDRT__W_TARGET static KDRT__FORCEINLINE void KDRT__W(kdrt__packet_walk_from)(
             if (sp == 0) return;
             --sp;
             lanes = stack[sp].lanes & p->lanes &
-                    ~kdrt__m_bits(kdrt__v_cmp(stack[sp].t0, kdrt__v_load(p->bound), _CMP_GT_OQ));
+                    ~kdrt__m_bits(kdrt__v_cmp(kdrt__v_load(stack[sp].t0), kdrt__v_load(p->bound), _CMP_GT_OQ));
             if (lanes) break;
         }
-        node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
+        node = stack[sp].node, t0 = kdrt__v_load(stack[sp].t0), t1 = kdrt__v_load(stack[sp].t1);
     }
 }
 
@@ -5821,10 +5847,11 @@ KDRT__W_TARGET static void KDRT__W(kdrt__packet_walk)(const kdrt_tree *tree, kdr
                                                       const float *t0, const float *t1,
                                                       int any_hit, kdrt_traversal_stats *stats)
 {
+    KDRT__W(kdrt__packet_todo) stack[KDRT_MAX_DEPTH];
     KDRT__COUNT(stats, packets, 1);
     KDRT__COUNT(stats, packet_lanes, (uint64_t)kdrt__bit_count(p->lanes));
-    if (any_hit) KDRT__W(kdrt__packet_walk_from)(tree, p, kdrt__v_load(t0), kdrt__v_load(t1), 1, stats);
-    else KDRT__W(kdrt__packet_walk_from)(tree, p, kdrt__v_load(t0), kdrt__v_load(t1), 0, stats);
+    if (any_hit) KDRT__W(kdrt__packet_walk_from)(tree, p, kdrt__v_load(t0), kdrt__v_load(t1), 1, stack, stats);
+    else KDRT__W(kdrt__packet_walk_from)(tree, p, kdrt__v_load(t0), kdrt__v_load(t1), 0, stack, stats);
 }
 
 /* kdrt__setup_ray and kdrt__clip_to_box for W rays at once, with their operations, so with their
@@ -5934,10 +5961,14 @@ KDRT__W_TARGET static uint32_t KDRT__W(kdrt__batch)(const kdrt_tree *tree, const
         const kdrt_ray *group = rays + i;
         float t0[KDRT__PACKET_WIDTH], t1[KDRT__PACKET_WIDTH];
         unsigned lane, left, walked, alone;
+        if (failures && !skip && n >= KDRT__PACKET_MIN_LANES && 2u * kdrt__same_signs(group, n) < n)
+            skip = kdrt__failed_packet(&failures) + 1u; /* this group too */
         if (skip || n < KDRT__PACKET_MIN_LANES) {
             /* Incoherent rays: after packets that did not form, the next groups go straight
                to the single-ray walk, a group more each time (up to 64), before trying again.
-               So do groups too small for a packet (a batch of one ray: its single call). */
+               So do groups too small for a packet (a batch of one ray: its single call), and
+               after a failure, groups whose directions mostly differ in their signs, found
+               without vector code (kdrt__same_signs). */
             if (skip) --skip;
             found += any_hit ? kdrt__batch_alone(tree, rays + i, n, NULL, occluded + i, stats)
                              : kdrt__batch_alone(tree, rays + i, n, hits + i, NULL, stats);
@@ -5972,7 +6003,7 @@ KDRT__W_TARGET static uint32_t KDRT__W(kdrt__batch)(const kdrt_tree *tree, const
         if (!kdrt__packet_together(tree, &p)) alone |= p.lanes, p.lanes = 0;
         walked = p.lanes;
         if (walked) failures = 0;
-        else if (++failures >= 2) skip = failures < 8 ? 1u << (failures - 2) : 64u;
+        else skip = kdrt__failed_packet(&failures);
         if (walked) KDRT__W(kdrt__packet_walk)(tree, &p, t0, t1, any_hit, stats);
         walked &= ~p.alone;
         for (left = p.alone; left; left &= left - 1u) { /* handed back during the walk: anew */
