@@ -249,23 +249,25 @@
    BATCHES
      kdrt_intersect_batch() and kdrt_occluded_batch() (and their scene forms) trace an array of
      rays, each answered exactly as the single-ray call answers it, every field of kdrt_hit (a
-     miss's too), whatever the batch's size, order or content. With the AVX2 kernel, each 8
-     consecutive rays form a packet (with the AVX-512 kernel each 16) when their directions have
-     no zero component and share their signs and their largest axis, and their origins and
-     directions lie close together: a camera's rays in 4x2 or 4x4 pixel tiles (4x4 for packets
-     of 16), the shadow rays of those pixels to one light. The packet walks the tree once: at
-     each plane every lane takes the decision its own walk from the root takes, all lanes at
-     once; a leaf's triangles are culled for the whole packet (rigorous
-     bounds on what the watertight test computes for each ray), and each one left is tested
-     against the packet's rays at once, with the test's own operations in each lane. Other rays
-     go one by one: odd ones, incoherent groups (after groups that form no packet, the next ones
-     do not try), and in kdrt_intersect_batch() rays with a start cell, whose rope walk names
-     their kdrt_hit.cell (kdrt_spawn_ray() sets one; a cell of 0 lets a ray into a packet). So do
-     queries with flags, a filter or a mask to test, the scalar kernel's batches, and a scene's
-     instances (its mesh tree walks in packets when every mesh's mask has every bit). Arrays are
-     contiguous, without a stride: the packets gather 8 or 16 rays at a time, and a caller whose rays
-     live in its own structures copies them into a kdrt_ray array for far less than tracing them
-     costs. Nothing is allocated; any number of threads may call at once.
+     miss's too), whatever the batch's size, order or content. With the AVX-512 kernel each 16
+     consecutive rays form a packet, with the AVX2 kernel each 8, when their directions have no
+     zero component and share their signs and their largest axis, and their origins and
+     directions lie close together: a camera's rays in 4x4 pixel tiles (4x2 for packets of 8),
+     the shadow rays of those pixels to one light. The packet walks the tree once: at each plane
+     every lane takes the decision its own walk from the root takes, all lanes at once; a leaf's
+     triangles are culled for the whole packet (rigorous bounds on what the watertight test
+     computes for each ray), and each one left is tested against the packet's rays at once, with
+     the test's own operations in each lane. Other rays go one by one: odd ones, incoherent
+     groups (after groups that form no packet, the next ones do not try, and are tried again
+     only when most of their directions share their signs), and in kdrt_intersect_batch() rays
+     with a start cell, whose rope walk names their kdrt_hit.cell (kdrt_spawn_ray() sets one; a
+     cell of 0 lets a ray into a packet). So do queries with flags, a filter or a mask to test,
+     the scalar kernel's batches, and a scene's instances (its mesh tree walks in packets when
+     every mesh's mask has every bit). Arrays are contiguous, without a stride: the packets
+     gather 8 or 16 rays at a time, and a caller whose rays live in its own structures copies
+     them into a kdrt_ray array for far less than tracing them costs. Nothing is allocated (a
+     call's stack is about 16 KB with the AVX-512 kernel, 11 KB with the AVX2 one: GCC 12 at -O3,
+     -fstack-usage); any number of threads may call at once.
 
    KERNELS
      A tree's queries run one of three kernels, chosen when it is built and kept in the tree (no
