@@ -53,6 +53,10 @@
      These three exist to measure the choice: the defaults are the measured best, and any value
      in range builds a valid tree, if not the same one. A value out of range stops the
      compilation with an #error.
+     The file with the implementation must be compiled with IEEE arithmetic: -ffast-math,
+     -ffinite-math-only and MSVC's /fp:fast stop it with an #error (the other files may use
+     them). Flags that change rounding without a macro to tell (-fassociative-math alone, say)
+     break the answers' bits silently: leave them off that file too.
        KDRT_NO_SIMD              leave the AVX2 and AVX-512 kernels and SSE2 binning out:
                                  every tree runs the scalar kernel and is binned by scalar code
                                  (KERNELS)
@@ -961,6 +965,14 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
 #include <string.h>
+/* The NaN and infinity checks (x - x == 0, t != t) and the exact tests need IEEE arithmetic, which
+   -ffast-math and -ffinite-math-only (MSVC: /fp:fast) let the compiler fold away: NaN vertices
+   were accepted, NaN rays hit, and the kernels disagreed. So the implementation refuses them;
+   the files that only include the header are free to use them. */
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__) || defined(_M_FP_FAST)
+#error "kdrt: compile the file that defines KDRT_IMPLEMENTATION without -ffast-math, -ffinite-math-only or /fp:fast: its NaN and infinity checks and its exact tests need IEEE arithmetic (the files that only include kdrt.h may keep them)"
+#endif
+
 /* SSE2, part of x86-64 itself: the builder's binning (kdrt__bin_refs), with no target attribute. */
 #if !defined(KDRT_NO_SIMD) && defined(__SSE2__)
 #define KDRT__SSE2 1
