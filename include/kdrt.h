@@ -53,16 +53,16 @@
      These three exist to measure the choice: the defaults are the measured best, and any value
      in range builds a valid tree, if not the same one. A value out of range stops the
      compilation with an #error.
-     The file with the implementation must be compiled with IEEE arithmetic: -ffast-math,
-     -ffinite-math-only and MSVC's /fp:fast stop it with an #error (the other files may use
-     them). Flags that change rounding without a macro to tell (-fassociative-math alone, say)
-     break the answers' bits silently: leave them off that file too.
        KDRT_NO_SIMD              leave the AVX2 and AVX-512 kernels and SSE2 binning out:
                                  every tree runs the scalar kernel and is binned by scalar code
                                  (KERNELS)
        KDRT_HEADER_FILENAME      the name this header is included by, in quotes (default
                                  "kdrt.h"): the implementation includes itself once more for
                                  each packet width (KERNELS); set it when the file is renamed
+     The file with the implementation must be compiled with IEEE arithmetic: -ffast-math,
+     -ffinite-math-only and MSVC's /fp:fast stop it with an #error (the other files may use
+     them). Flags that change rounding without a macro to tell (-fassociative-math alone, say)
+     break the answers' bits silently: leave them off that file too.
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -286,11 +286,12 @@
      SIMD functions carry the per-function target attribute. All three walk the same tree and
      read the same 8-wide leaf blocks; the AVX2 kernel tests a block's 8 triangles at once, with
      the scalar test's operations in the same order and without FMA, so they return the same
-     answers bit for bit (the tests compare them on 1.4 million rays). Before its exact watertight test, the
-     AVX2 kernel leaves a block early when float products already prove that the ray misses
-     all 8 triangles: a filter that changes no answer. Where the compiler contracts multiply-adds
-     into FMAs (-march=native with -ffp-contract=fast), each kernel keeps every guarantee above
-     but their last bits may differ (a batch's answers stay the single calls' in either case).
+     answers bit for bit (the tests compare them on 1.4 million rays). Before its exact
+     watertight test, the AVX2 kernel leaves a block early when float products already prove
+     that the ray misses all 8 triangles: a filter that changes no answer. Where the compiler
+     contracts multiply-adds into FMAs (-march=native with -ffp-contract=fast), each kernel keeps
+     every guarantee above but their last bits may differ (a batch's answers stay the single
+     calls' in either case).
      AVX-512 implies FMA, so its packet code names the rounding of each operation, which keeps
      the compiler from fusing them. On MSVC and off x86-64 the scalar kernel runs. The SAH
      builder bins references with SSE2 (part of x86-64: no attribute needed), each lane rounding
@@ -969,7 +970,8 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
    -ffast-math and -ffinite-math-only (MSVC: /fp:fast) let the compiler fold away: NaN vertices
    were accepted, NaN rays hit, and the kernels disagreed. So the implementation refuses them;
    the files that only include the header are free to use them. */
-#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__) || defined(_M_FP_FAST)
+#if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__) ||           \
+    defined(_M_FP_FAST)
 #error "kdrt: compile the file that defines KDRT_IMPLEMENTATION without -ffast-math, -ffinite-math-only or /fp:fast: its NaN and infinity checks and its exact tests need IEEE arithmetic (the files that only include kdrt.h may keep them)"
 #endif
 
@@ -2937,9 +2939,12 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt__mesh
     tree->masks_full = 1;
     for (i = 0; m && i < m->count; ++i) tree->masks_full &= m->parts[i].mask == 0xFFFFFFFFu;
     tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
-    tree->simd = (opt->flags & KDRT_BUILD_SCALAR_KERNEL) || !kdrt__cpu_has_avx2() ? KDRT_KERNEL_SCALAR
-                 : !(opt->flags & KDRT_BUILD_AVX2_KERNEL) && kdrt__cpu_has_avx512() ? KDRT_KERNEL_AVX512
-                                                                                   : KDRT_KERNEL_AVX2;
+    if ((opt->flags & KDRT_BUILD_SCALAR_KERNEL) || !kdrt__cpu_has_avx2())
+        tree->simd = KDRT_KERNEL_SCALAR;
+    else if (!(opt->flags & KDRT_BUILD_AVX2_KERNEL) && kdrt__cpu_has_avx512())
+        tree->simd = KDRT_KERNEL_AVX512;
+    else
+        tree->simd = KDRT_KERNEL_AVX2;
     tree->stats.kernel = (kdrt_kernel)tree->simd;
     tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
@@ -4250,8 +4255,10 @@ static int kdrt__packet_together(const kdrt_tree *tree, const kdrt__packet *p)
     int b, together = kdrt__bit_count(p->lanes) >= KDRT__PACKET_MIN_LANES;
     if (!together) return 0; /* and the bounds are set where the setup found lanes */
     for (b = 0; b < 3; ++b)
-        together &= p->hi[b] - p->lo[b] <= KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]);
-    return together && p->hi[3] - p->lo[3] <= KDRT__PACKET_SPREAD && p->hi[4] - p->lo[4] <= KDRT__PACKET_SPREAD;
+        together &= p->hi[b] - p->lo[b] <=
+                    KDRT__PACKET_SPREAD * (tree->bounds.max[axis[b]] - tree->bounds.min[axis[b]]);
+    return together && p->hi[3] - p->lo[3] <= KDRT__PACKET_SPREAD &&
+           p->hi[4] - p->lo[4] <= KDRT__PACKET_SPREAD;
 }
 
 /* kdrt__batch_avx2 and kdrt__batch_avx512, and their packet walks (PACKETS). */
@@ -5555,10 +5562,12 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #define kdrt__v_abs(a) _mm512_abs_ps(a)
 #define kdrt__v_cmp(a, b, predicate) _mm512_cmp_ps_mask(a, b, predicate)
 #define kdrt__v_blend(a, b, m) _mm512_mask_blend_ps(m, a, b)
-#define kdrt__v_gather(base, index) _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, index, base, 4)
+#define kdrt__v_gather(base, index)                                                             \
+    _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, index, base, 4)
 #define kdrt__m_gather_zero(base, index)                                                        \
-    _mm512_cmpeq_epi32_mask(_mm512_mask_i32gather_epi32(_mm512_setzero_si512(), 0xFFFF, index, (const int *)(base), 4), \
-                            _mm512_setzero_si512())
+    _mm512_cmpeq_epi32_mask(                                                                    \
+        _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), 0xFFFF, index, (const int *)(base), 4), \
+        _mm512_setzero_si512())
 #define kdrt__m_and(a, b) ((__mmask16)((a) & (b)))
 #define kdrt__m_or(a, b) ((__mmask16)((a) | (b)))
 #define kdrt__m_xor(a, b) ((__mmask16)((a) ^ (b)))
