@@ -966,13 +966,39 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
 #include <string.h>
-/* The NaN and infinity checks (x - x == 0, t != t) and the exact tests need IEEE arithmetic, which
-   -ffast-math and -ffinite-math-only (MSVC: /fp:fast) let the compiler fold away: NaN vertices
-   were accepted, NaN rays hit, and the kernels disagreed. So the implementation refuses them;
-   the files that only include the header are free to use them. */
+/* The exact tests and the walk's NaN checks (t != t) need IEEE arithmetic, which -ffast-math and
+   -ffinite-math-only (MSVC: /fp:fast) let the compiler fold away: rays with NaN hit, and the
+   kernels disagreed. So the implementation refuses them (the input checks are bit tests and
+   would survive); the files that only include the header are free to use them. */
 #if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__) ||           \
     defined(_M_FP_FAST)
 #error "kdrt: compile the file that defines KDRT_IMPLEMENTATION without -ffast-math, -ffinite-math-only or /fp:fast: its NaN and infinity checks and its exact tests need IEEE arithmetic (the files that only include kdrt.h may keep them)"
+#endif
+
+/* The same answers on every platform: each operation rounds once, as written. A compiler that
+   fuses a * b + c into one FMA (GCC in its GNU modes, which CMake's defaults are; Clang wherever
+   the target has FMA, -march=haswell or aarch64; MSVC's /fp:contract) changes the last bits of t,
+   u and v, and the kernels would disagree between machines. So contraction is off for the
+   implementation, whatever the command line says, and restored after it. Clang alone ignores
+   these pragmas under an explicit -ffp-contract=fast: do not give it that for this file. */
+#if defined(__clang__)
+#pragma float_control(push)
+#pragma clang fp contract(off)
+#elif defined(__GNUC__)
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=off")
+#elif defined(_MSC_VER)
+#pragma fp_contract(off)
+#endif
+
+/* x87 arithmetic (i386 without SSE2) keeps intermediates in 80 bits and rounds them when it
+   spills them: its answers differ from every other platform's, and from run to run of the
+   optimiser's choices. Refused: float and double must be evaluated in their own precision
+   (FLT_EVAL_METHOD 0, or 16 where the CPU has half floats). */
+#include <float.h>
+#if (defined(FLT_EVAL_METHOD) && (FLT_EVAL_METHOD == 1 || FLT_EVAL_METHOD == 2)) ||               \
+    (defined(_M_IX86) && (!defined(_M_IX86_FP) || _M_IX86_FP < 2))
+#error "kdrt: compile the file that defines KDRT_IMPLEMENTATION with SSE2 arithmetic (GCC and Clang: -msse2 -mfpmath=sse; MSVC: /arch:SSE2): x87's 80-bit intermediates give other answers than every other platform's"
 #endif
 
 /* SSE2, part of x86-64 itself: the builder's binning (kdrt__bin_refs), with no target attribute. */
@@ -1128,8 +1154,14 @@ struct kdrt_tree {
 
 /* ==== small helpers: floats, cross products, allocation ==== */
 
-/* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
-static int kdrt__finite(float x) { return x - x == 0.0f; }
+/* Finite: the exponent bits not all ones (those are NaN and the infinities). A bit test, not a
+   float comparison, so no compiler's finite-math assumption can fold it away. */
+static int kdrt__finite(float x)
+{
+    uint32_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    return (bits & 0x7f800000u) != 0x7f800000u;
+}
 static float kdrt__abs(float x) { return x < 0.0f ? -x : x; }
 
 /* The next float towards +infinity / -infinity (finite x). */
@@ -5464,6 +5496,11 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 
 #ifdef __cplusplus
 }
+#endif
+#if defined(__clang__)
+#pragma float_control(pop)
+#elif defined(__GNUC__)
+#pragma GCC pop_options
 #endif
 #endif /* KDRT_IMPLEMENTATION */
 
