@@ -61,8 +61,11 @@
                                  each packet width (KERNELS); set it when the file is renamed
      The file with the implementation must be compiled with IEEE arithmetic: -ffast-math,
      -ffinite-math-only and MSVC's /fp:fast stop it with an #error (the other files may use
-     them). Flags that change rounding without a macro to tell (-fassociative-math alone, say)
-     break the answers' bits silently: leave them off that file too.
+     them), and so does i386's x87 arithmetic (use -msse2 -mfpmath=sse). Contraction into FMAs
+     is turned off inside the implementation whatever the command line says (PLATFORMS), except
+     that Clang ignores that under an explicit -ffp-contract=fast. Flags that change rounding
+     without a macro to tell (-fassociative-math alone, say) break the answers' bits silently:
+     leave them off that file too.
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -288,12 +291,10 @@
      the scalar test's operations in the same order and without FMA, so they return the same
      answers bit for bit (the tests compare them on 1.4 million rays). Before its exact
      watertight test, the AVX2 kernel leaves a block early when float products already prove
-     that the ray misses all 8 triangles: a filter that changes no answer. Where the compiler
-     contracts multiply-adds into FMAs (-march=native with -ffp-contract=fast), each kernel keeps
-     every guarantee above but their last bits may differ (a batch's answers stay the single
-     calls' in either case).
-     AVX-512 implies FMA, so its packet code names the rounding of each operation, which keeps
-     the compiler from fusing them. On MSVC and off x86-64 the scalar kernel runs. The SAH
+     that the ray misses all 8 triangles: a filter that changes no answer. The compiler may not
+     fuse a multiply and an add into an FMA anywhere in the implementation (PLATFORMS), so
+     -march=native or GCC's GNU modes change no bit either. AVX-512 implies FMA; its packet code
+     also names the rounding of each operation, which no compiler fuses. On MSVC and off x86-64 the scalar kernel runs. The SAH
      builder bins references with SSE2 (part of x86-64: no attribute needed), each lane rounding
      as the scalar code does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL bins with the
      scalar code too.
@@ -848,8 +849,6 @@ KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
                                   const kdrt_query *query, kdrt_hit *hit);
 KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
                                  const kdrt_query *query);
-/* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
-   kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
 /* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
    kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
 KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt_ray *rays,
