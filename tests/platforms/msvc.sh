@@ -17,7 +17,10 @@
 #    cl.exe, refuses intrinsics outside their target); no -m flag, so that __AVX2__ and __FMA__
 #    stay undefined as under cl.exe's default /arch. Its preprocessed kdrt.h code must hold no
 #    __attribute__, __asm__ or __builtin_ of its own (clang's intrinsic macros expand to
-#    __builtin_ia32_*, which MSVC's are functions for).
+#    __builtin_ia32_*, which MSVC's are functions for), and its syntax tree (clang -ast-dump) no
+#    GNU vector operation in kdrt.h's code: no operator but = and , on a vector value (a + b,
+#    a < b, ~a, a += b), no element v[i], no cast of one vector type to another, explicit or
+#    implicit; MSVC's __m256 and __m512 are unions, with none of them.
 # What this proves: kdrt.h's MSVC paths are C99 and C++ that clang accepts in MSVC mode, warning
 # free, and that clang-cl's object code holds both kernels and needs no runtime library. What it
 # does not: that cl.exe itself accepts them (its parser, its /W4 warnings, its intrinsic headers'
@@ -167,6 +170,61 @@ for variant in "${cl_variants[@]}"; do
         fail "cl_macros_$name: GNU constructs in kdrt.h's code in cl.exe's macro set: $gnu"
     fi
 done
+
+# GNU vector operations in kdrt.h's code, from clang's syntax tree of the C compile.
+cat >"$work/vector_operations.awk" <<'EOF'
+# Operators applied to vector values (GNU vector extensions; MSVC's __m256 and __m512 are unions
+# and have none) in kdrt.h's code, from clang's -ast-dump: each node's file is its range's first
+# location's, printed only where it changes.
+{
+    line = $0
+    first = ""
+    if (match(line, /<[^>]*>/)) {
+        range = substr(line, RSTART + 1, RLENGTH - 2)
+        if (match(range, /^[^ ,:<]+\.[a-z]+:[0-9]+:[0-9]+/)) {
+            first = substr(range, 1, RLENGTH); sub(/:[0-9]+:[0-9]+$/, "", first)
+        }
+    }
+    node_file = first != "" ? first : last
+    # the last file named on the line is the one later lines' locations are in
+    rest = line
+    while (match(rest, /[^ ,:<>]+\.[a-z]+:[0-9]+:[0-9]+/)) {
+        f = substr(rest, RSTART, RLENGTH); sub(/:[0-9]+:[0-9]+$/, "", f); last = f
+        rest = substr(rest, RSTART + RLENGTH)
+    }
+    subscript = previous_subscript; previous_subscript = 0
+    if (node_file !~ /\/kdrt\.h$/) next
+    # an element of a vector (v[i]), or an operator whose value is a vector, other than = and ,
+    # (which structs have too): its type is the first quoted one on the line
+    # (v[i] of an lvalue is marked vectorcomponent; of an rvalue, its base below it is a vector)
+    if (line ~ /vectorcomponent/) { print node_file ": " line; next }
+    if (line ~ /-ArraySubscriptExpr /) { previous_subscript = 1; next }
+    if (!match(line, /'[^']*'(:'[^']*')?/)) next
+    type = substr(line, RSTART, RLENGTH)
+    vector = type ~ /__vector_size__/ && type !~ /[*\]]'?$/
+    if (subscript && vector) { print node_file ": a vector's element: " line; next }
+    if (!vector) next
+    # a vector cast to another vector's type (MSVC has the _mm*_cast* intrinsics for that)
+    if (line ~ /CastExpr / && line ~ /<BitCast>/) { print node_file ": a cast: " line; next }
+    if (line !~ /-(BinaryOperator|CompoundAssignOperator|UnaryOperator) /) next
+    if (line ~ /-BinaryOperator / && line ~ /'(=|,)'$/) next
+    if (line ~ /-UnaryOperator / && line ~ /prefix '\*'/) next
+    print node_file ": " line
+}
+EOF
+echo "+ $clang ${target[*]} -U__clang__ -x c -std=c99 -fsyntax-only -Xclang -ast-dump cl_macros.c | awk -f vector_operations.awk"
+if "$clang" "${target[@]}" -U__clang__ -x c -std=c99 "${include[@]}" -fsyntax-only -Xclang -ast-dump \
+    -fno-color-diagnostics "$work/cl_macros.c" >"$work/cl_macros.ast"; then
+    awk -f "$work/vector_operations.awk" "$work/cl_macros.ast" >"$work/vector_operations.txt"
+    grep -q 'kdrt__batch_avx512' "$work/cl_macros.ast" || fail "the syntax tree holds no AVX-512 kernel"
+    if [ -s "$work/vector_operations.txt" ]; then
+        fail "GNU vector operations in kdrt.h, which cl.exe does not have: $(cat "$work/vector_operations.txt")"
+    else
+        echo "  kdrt.h's code: no operator, element access or cast on a vector value"
+    fi
+else
+    fail "clang -ast-dump of cl_macros.c"
+fi
 
 echo "msvc.sh: $((SECONDS - start)) s"
 if [ "$failures" != 0 ]; then
