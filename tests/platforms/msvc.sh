@@ -11,11 +11,11 @@
 #    compiler-rt's (__cpu_model, __cpu_indicator_init: __builtin_cpu_supports).
 # 2. In cl.exe's macro set: _MSC_VER, and neither __clang__ (-U__clang__; clang's own headers
 #    never test it) nor __GNUC__ (never defined for this target). kdrt.h then takes its cl.exe
-#    paths: no target attributes, _BitScanForward, the cpuid check. The wrapper names clang's
-#    AVX, AVX2 and AVX-512 headers, as MSVC's immintrin.h declares every intrinsic, and gives
-#    kdrt's functions the "avx2,avx512f" target with #pragma clang attribute (clang, unlike
-#    cl.exe, refuses intrinsics outside their target); no -m flag, so that __AVX2__ and __FMA__
-#    stay undefined as under cl.exe's default /arch. Its preprocessed kdrt.h code must hold no
+#    paths: no target attributes, _BitScanForward, the cpuid check. The wrapper, cl_macros.c,
+#    names clang's AVX, AVX2 and AVX-512 headers, as MSVC's immintrin.h declares every
+#    intrinsic, and gives kdrt's functions the "avx2,avx512f" target with #pragma clang
+#    attribute (clang, unlike cl.exe, refuses intrinsics outside their target); no -m flag, so
+#    that __AVX2__ and __FMA__ stay undefined as under cl.exe's default /arch. Its preprocessed kdrt.h code must hold no
 #    __attribute__, __asm__ or __builtin_ of its own (clang's intrinsic macros expand to
 #    __builtin_ia32_*, which MSVC's are functions for), and its syntax tree (clang -ast-dump) no
 #    GNU vector operation in kdrt.h's code: no operator but = and , on a vector value (a + b,
@@ -51,19 +51,6 @@ include=(-isystem "$root/tests/platforms/msvc-libc" -I"$root/include")
 crt_symbols=" _fltused __chkstk _wassert malloc free qsort memcpy memset sqrt fma fabs "
 
 printf '#define KDRT_IMPLEMENTATION\n#include "kdrt.h"\n' >"$work/clang_cl.c"
-cat >"$work/cl_macros.c" <<'EOF'
-/* kdrt.h in cl.exe's macro set (tests/platforms/msvc.sh): MSVC's immintrin.h declares every
-   intrinsic, clang's those the flags enable; and clang needs a function's target for them. */
-#include <immintrin.h>
-#include <smmintrin.h>
-#include <avxintrin.h>
-#include <avx2intrin.h>
-#include <avx512fintrin.h>
-#pragma clang attribute push(__attribute__((target("avx2,avx512f"))), apply_to = function)
-#define KDRT_IMPLEMENTATION
-#include "kdrt.h"
-#pragma clang attribute pop
-EOF
 
 failures=0
 fail() {
@@ -133,7 +120,7 @@ done
 for variant in "${cl_variants[@]}"; do
     read -r name flags <<<"$variant"
     # shellcheck disable=SC2086
-    compile "cl_macros_$name" "$work/cl_macros.c" -U__clang__ $flags
+    compile "cl_macros_$name" "$root/tests/platforms/cl_macros.c" -U__clang__ $flags
 done
 for pid in "${compiles[@]}"; do wait "$pid" || true; done # each leaves its .failed
 
@@ -158,7 +145,7 @@ for variant in "${cl_variants[@]}"; do
     compiled "cl_macros_$name" || continue
     # kdrt.h's own lines after preprocessing: no GNU construct of its own
     # shellcheck disable=SC2086
-    "$clang" "${target[@]}" -U__clang__ $flags "${include[@]}" -E "$work/cl_macros.c" |
+    "$clang" "${target[@]}" -U__clang__ $flags "${include[@]}" -E "$root/tests/platforms/cl_macros.c" |
         awk '/^# [0-9]+ "/ { file = $3; next } file ~ /\/kdrt\.h"$/' >"$work/cl_macros_$name.i"
     grep -q 'kdrt__cpu_vector_level' "$work/cl_macros_$name.i" || fail "cl_macros_$name: the cpuid check is not compiled"
     grep -q '_BitScanForward' "$work/cl_macros_$name.i" || fail "cl_macros_$name: kdrt__ctz is not _BitScanForward"
@@ -214,7 +201,7 @@ cat >"$work/vector_operations.awk" <<'EOF'
 EOF
 echo "+ $clang ${target[*]} -U__clang__ -x c -std=c99 -fsyntax-only -Xclang -ast-dump cl_macros.c | awk -f vector_operations.awk"
 if "$clang" "${target[@]}" -U__clang__ -x c -std=c99 "${include[@]}" -fsyntax-only -Xclang -ast-dump \
-    -fno-color-diagnostics "$work/cl_macros.c" >"$work/cl_macros.ast"; then
+    -fno-color-diagnostics "$root/tests/platforms/cl_macros.c" >"$work/cl_macros.ast"; then
     awk -f "$work/vector_operations.awk" "$work/cl_macros.ast" >"$work/vector_operations.txt"
     grep -q 'kdrt__batch_avx512' "$work/cl_macros.ast" || fail "the syntax tree holds no AVX-512 kernel"
     if [ -s "$work/vector_operations.txt" ]; then
