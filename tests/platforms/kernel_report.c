@@ -6,10 +6,15 @@
    every answer must be the scalar tree's single call's bit for bit, and the watertight test's
    nearest hits must match a double-precision brute force. Prints a line per tree:
        kernel default: avx512 (batches: 96 packets, 1536 lanes)
-   with the packets its batches walked, and "kernel_report: all checks passed", or what failed,
-   and exits 1. */
+   with the packets its batches walked, a hash of the answers (the same from every compiler that
+   rounds as IEEE says, without contracting), and "kernel_report: all checks passed", or what
+   failed, and exits 1. */
 #define KDRT_TRAVERSAL_STATS /* the batches' packet counts */
+/* KERNEL_REPORT_LINKED: the implementation comes from another object, compiled with
+   KDRT_TRAVERSAL_STATS (windows.sh: by clang for MSVC's target). */
+#ifndef KERNEL_REPORT_LINKED
 #define KDRT_IMPLEMENTATION
+#endif
 #include "kdrt.h"
 
 #include <math.h>
@@ -123,6 +128,24 @@ static double brute_force_t(const scene *s, const kdrt_ray *r)
     return best;
 }
 
+/* FNV-1a over the answers' bits: the nearest hits' t, u, v, triangle and cell (the triangle
+   alone for a miss) and the occluded answers, so that builds by other compilers can be compared
+   bit for bit. */
+static uint32_t answers_hash(uint32_t hash, const answers *a)
+{
+    uint32_t i;
+    size_t k;
+    for (i = 0; i < RAYS; ++i) {
+        unsigned char bytes[sizeof(kdrt_hit) + 1];
+        const size_t n = a->hits[i].triangle == KDRT_INVALID_ID ? sizeof(uint32_t) : sizeof(kdrt_hit);
+        if (n == sizeof(kdrt_hit)) memcpy(bytes, &a->hits[i], n);
+        else memcpy(bytes, &a->hits[i].triangle, n);
+        bytes[n] = a->occluded[i];
+        for (k = 0; k <= n; ++k) hash = (hash ^ bytes[k]) * 16777619u;
+    }
+    return hash;
+}
+
 /* Whether two nearest-hit answers are the same: both misses, or the same hit bit for bit. */
 static int same_hit(const kdrt_hit *a, const kdrt_hit *b)
 {
@@ -176,10 +199,11 @@ int main(void)
                                               "KDRT_BUILD_SCALAR_KERNEL"};
     static const kdrt_intersector intersectors[2] = {KDRT_INTERSECTOR_WATERTIGHT, KDRT_INTERSECTOR_FAST};
     static const char *const intersector_names[2] = {"watertight", "fast"};
-    kdrt_triangles mesh = {0};
+    kdrt_triangles mesh;
     int failures = 0, f, m;
-    uint32_t i, hits = 0, misses = 0, occluded = 0;
+    uint32_t i, hits = 0, misses = 0, occluded = 0, hash = 2166136261u;
     make_scene(&s);
+    memset(&mesh, 0, sizeof mesh);
     mesh.positions = s.vertices, mesh.vertex_count = VERTICES;
     mesh.indices = s.indices, mesh.triangle_count = TRIANGLES;
     for (m = 0; m < 2; ++m) {
@@ -225,6 +249,7 @@ int main(void)
                     }
             kdrt_tree_free(tree);
         }
+        hash = answers_hash(hash, &reference);
         /* The watertight scalar answers against the brute force: the same t within float's
            rounding (a ray through a shared edge may take either triangle, at the same t). The
            fast test promises no hit on an edge, so it is compared with the others alone. */
@@ -240,8 +265,9 @@ int main(void)
             hits += (uint32_t)hit, misses += (uint32_t)!hit, occluded += reference.occluded[i];
         }
     }
-    printf("rays: %u, %u hit, %u miss, %u occluded (on 6 trees: single calls, batches, counted batches)\n", (unsigned)RAYS,
-           (unsigned)hits, (unsigned)misses, (unsigned)occluded);
+    printf("rays: %u, %u hit, %u miss, %u occluded (on 6 trees: single calls, batches, counted batches)\n",
+           (unsigned)RAYS, (unsigned)hits, (unsigned)misses, (unsigned)occluded);
+    printf("answers: %08x\n", (unsigned)hash);
     /* rays that all missed or all hit would check little */
     if (hits < RAYS / 4 || misses < RAYS / 20) {
         fprintf(stderr, "kernel_report: FAILED: too few hits or misses to compare\n");
