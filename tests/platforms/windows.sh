@@ -1,14 +1,19 @@
 #!/usr/bin/env bash
-# kdrt on Windows, built by mingw-w64 GCC and run under wine: the smoke tests, the examples that
-# need only the header, and kernel_report.c, which checks that a default tree runs the AVX-512 or
-# AVX2 kernel where this CPU has it (wine passes the CPU's features through), a scalar-flagged one
-# the scalar kernel, and that all of them give the same answers bit for bit.
+# kdrt on Windows, run under wine: the smoke tests, the examples that need only the header, and
+# kernel_report.c, built by mingw-w64 GCC; and kernel_report linked with kdrt's implementation
+# compiled by clang for MSVC's target (as clang-cl compiles it, and in cl.exe's macro set, as
+# msvc.sh compiles them), which runs its cpuid check. kernel_report checks that a default tree
+# runs the AVX-512 or AVX2 kernel where this CPU has it (wine passes the CPU's features
+# through), an AVX2-flagged one AVX2, a scalar-flagged one the scalar kernel, and that all
+# answer alike bit for bit.
 #   tests/platforms/windows.sh
 # Compiled as CMake compiles them (the Release build's -O3 -DNDEBUG, tests/CMakeLists.txt's and
-# examples/CMakeLists.txt's warnings, as errors), linked with -static so that wine needs no DLL
-# path. Uses x86_64-w64-mingw32-gcc-posix and -g++-posix, /usr/lib/wine/wine64 and wineserver
-# (KDRT_MINGW_CC, KDRT_MINGW_CXX, KDRT_WINE, KDRT_WINESERVER override them). Exits non-zero on any
-# failure.
+# examples/CMakeLists.txt's warnings, as errors; kernel_report at -O2 with assertions on),
+# linked with -static so that wine needs no DLL path. Uses x86_64-w64-mingw32-gcc-posix,
+# -g++-posix and -nm, clang, /usr/lib/wine/wine64 and wineserver (KDRT_MINGW_CC, KDRT_MINGW_CXX,
+# KDRT_MINGW_NM, KDRT_CLANG, KDRT_WINE, KDRT_WINESERVER override them), and CC (or cc) for a
+# native kernel_report, whose answers each Windows build must give bit for bit. Prints what it
+# runs; exits non-zero on any failure.
 set -euo pipefail
 
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -16,6 +21,9 @@ cc=${KDRT_MINGW_CC:-x86_64-w64-mingw32-gcc-posix}
 cxx=${KDRT_MINGW_CXX:-x86_64-w64-mingw32-g++-posix}
 wine=${KDRT_WINE:-/usr/lib/wine/wine64}
 wineserver=${KDRT_WINESERVER:-/usr/lib/wine/wineserver}
+mingw_nm=${KDRT_MINGW_NM:-x86_64-w64-mingw32-nm}
+clang=${KDRT_CLANG:-clang}
+host_cc=${CC:-cc}
 start=$SECONDS
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/kdrt-windows.XXXXXX")
@@ -42,16 +50,16 @@ strict=(-Wconversion -Wsign-conversion -Wshadow)        # kdrt_strict_conversion
 release=(-O3 -DNDEBUG)                                  # CMAKE_BUILD_TYPE=Release
 include=(-I"$root/include")
 
-# compile NAME COMPILER FLAGS... : NAME.exe in $work, in the background, two at a time (the
-# machine's two cores); a failure leaves NAME.failed.
+# compile OUTPUT COMPILER FLAGS... : OUTPUT in $work, in the background, two at a time (the
+# machine's two cores); a failure leaves OUTPUT.failed.
 compiles=()
 compile() {
-    local name=$1 pid running
+    local output=$1 pid running
     shift
-    echo "+ $* -o $name.exe"
-    ( cd "$work" && "$@" -o "$name.exe" >"$name.build.log" 2>&1 ) || {
-        cat "$work/$name.build.log" >&2
-        touch "$work/$name.failed"
+    echo "+ $* -o $output"
+    ( cd "$work" && "$@" -o "$output" >"$output.build.log" 2>&1 ) || {
+        cat "$work/$output.build.log" >&2
+        touch "$work/$output.failed"
     } &
     compiles+=($!)
     while :; do
@@ -62,21 +70,37 @@ compile() {
     done
 }
 
-compile smoke_c99 "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${strict[@]}" "${include[@]}" \
+compile smoke_c99.exe "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${strict[@]}" "${include[@]}" \
     "$root/tests/smoke_c99.c" -static
-compile smoke_stats "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${include[@]}" \
+compile smoke_stats.exe "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${include[@]}" \
     "$root/tests/smoke_stats.c" -static
-compile smoke_cpp11 "$cxx" -std=c++11 "${release[@]}" "${warnings[@]}" "${strict[@]}" "${include[@]}" \
+compile smoke_cpp11.exe "$cxx" -std=c++11 "${release[@]}" "${warnings[@]}" "${strict[@]}" "${include[@]}" \
     "$root/tests/smoke_cpp11.cpp" -static
-compile minimal "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${include[@]}" \
+compile minimal.exe "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${include[@]}" \
     "$root/examples/minimal.c" -static
-compile engine "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include[@]}" \
+compile engine.exe "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include[@]}" \
     "$root/examples/engine.cpp" -static -pthread
-compile instances "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include[@]}" \
+compile instances.exe "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include[@]}" \
     "$root/examples/instances.cpp" -static
 # kernel_report with kdrt's assertions on (no NDEBUG), at the strict warnings.
-compile kernel_report "$cc" -std=c99 -O2 "${warnings[@]}" "${strict[@]}" "${include[@]}" \
+compile kernel_report.exe "$cc" -std=c99 -O2 "${warnings[@]}" "${strict[@]}" "${include[@]}" \
     "$root/tests/platforms/kernel_report.c" -static
+# kdrt compiled by clang for MSVC's target, as clang-cl compiles it and in cl.exe's macro set
+# (msvc.sh says what each stands for; -ffp-contract=off: VS2022's /fp:precise contracts nothing,
+# and cl_macros.c gives every function FMA), each linked by mingw-w64 with kernel_report (C's
+# MSVC ABI is mingw-w64's): the cpuid check and those builds' kernels at work under wine.
+msvc=("$clang" --target=x86_64-pc-windows-msvc -fms-extensions -fms-compatibility
+      -fms-compatibility-version=19.30 -isystem "$root/tests/platforms/msvc-libc")
+printf '#define KDRT_IMPLEMENTATION\n#include "kdrt.h"\n' >"$work/clang_cl.c"
+compile kdrt_clang_cl.obj "${msvc[@]}" -x c -std=c99 -O2 -DKDRT_TRAVERSAL_STATS "${warnings[@]}" \
+    "${strict[@]}" "${include[@]}" -c clang_cl.c
+compile kdrt_cl_macros.obj "${msvc[@]}" -U__clang__ -x c -std=c99 -O2 -ffp-contract=off \
+    -DKDRT_TRAVERSAL_STATS "${warnings[@]}" "${strict[@]}" "${include[@]}" -c "$root/tests/platforms/cl_macros.c"
+compile kernel_report_linked.o "$cc" -std=c99 -O2 -DKERNEL_REPORT_LINKED "${warnings[@]}" "${strict[@]}" \
+    "${include[@]}" -c "$root/tests/platforms/kernel_report.c"
+# And natively, for the answers Linux gives.
+compile kernel_report_native "$host_cc" -std=c99 -O2 "${warnings[@]}" "${strict[@]}" "${include[@]}" \
+    "$root/tests/platforms/kernel_report.c" -lm
 for pid in "${compiles[@]}"; do wait "$pid" || true; done # each leaves its .failed
 if compgen -G "$work/*.failed" >/dev/null; then
     echo "windows.sh: FAILED: these did not compile: $(cd "$work" && ls -- *.failed | sed 's/\.failed$//' | tr '\n' ' ')" >&2
@@ -87,6 +111,22 @@ if grep -l "warning:" "$work"/*.build.log >/dev/null 2>&1; then
     echo "windows.sh: FAILED: warnings in $(grep -l "warning:" "$work"/*.build.log | tr '\n' ' ')" >&2
     exit 1
 fi
+# The implementation must come from the MSVC objects alone.
+if "$mingw_nm" "$work/kernel_report_linked.o" | grep -q ' T kdrt_tree_build$'; then
+    echo "windows.sh: FAILED: kernel_report_linked.o has an implementation of its own" >&2
+    exit 1
+fi
+# _fltused and __chkstk are the MSVC CRT's: _fltused is only referenced (to link the CRT's
+# floating-point support); __chkstk probes the stack as libgcc's ___chkstk_ms does (on x64: rax
+# bytes, rsp and the registers kept).
+for build in clang_cl cl_macros; do
+    echo "+ $cc kernel_report_linked.o kdrt_$build.obj -static -Wl,--defsym=_fltused=0 -Wl,--defsym=__chkstk=___chkstk_ms -Wl,-u,___chkstk_ms -o kernel_report_$build.exe"
+    if ! (cd "$work" && "$cc" kernel_report_linked.o "kdrt_$build.obj" -static -Wl,--defsym=_fltused=0 \
+        -Wl,--defsym=__chkstk=___chkstk_ms -Wl,-u,___chkstk_ms -o "kernel_report_$build.exe"); then
+        echo "windows.sh: FAILED: kernel_report_$build.exe did not link" >&2
+        exit 1
+    fi
+done
 echo "built in $((SECONDS - start)) s"
 
 wait # wineboot too
@@ -139,8 +179,17 @@ if has avx2; then
     if has avx512f; then default_kernel=avx512; fi
 fi
 echo "this CPU: the default tree should run the $default_kernel kernel"
-run kernel_report "^kernel default: $default_kernel " "^kernel KDRT_BUILD_AVX2_KERNEL: $avx2_kernel " \
-    "^kernel KDRT_BUILD_SCALAR_KERNEL: scalar " "^kernel_report: all checks passed$"
+echo "+ kernel_report_native"
+if ! (cd "$work" && ./kernel_report_native) >"$work/native.txt"; then
+    echo "windows.sh: FAILED: the native kernel_report failed" >&2
+    failures=$((failures + 1))
+fi
+sed 's/^/    /' "$work/native.txt"
+answers=$(grep -m1 '^answers: ' "$work/native.txt" || echo "answers: none")
+for report in kernel_report kernel_report_clang_cl kernel_report_cl_macros; do
+    run "$report" "^kernel default: $default_kernel " "^kernel KDRT_BUILD_AVX2_KERNEL: $avx2_kernel " \
+        "^kernel KDRT_BUILD_SCALAR_KERNEL: scalar " "^$answers\$" "^kernel_report: all checks passed$"
+done
 
 echo "windows.sh: $((SECONDS - start)) s in all"
 if [ "$failures" != 0 ]; then
