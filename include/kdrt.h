@@ -3577,6 +3577,12 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
      (defined(_MSC_VER) && defined(_M_X64) && !defined(_M_ARM64EC)))
 #define KDRT__AVX2 1
 #include <immintrin.h>
+#if defined(_MSC_VER) && !defined(__clang__)
+/* cl.exe names each function with AVX code compiled without /arch:AVX (C4752): kdrt's run
+   only where the CPU check found AVX2. Popped at the end of the implementation. */
+#pragma warning(push)
+#pragma warning(disable : 4752)
+#endif
 #if defined(__GNUC__) || defined(__clang__)
 #define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
 /* The AVX-512 kernel: the AVX2 kernel, and a batch's packets 16 rays wide (BATCHES). */
@@ -5520,6 +5526,10 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
             x.entering ? ior : kdrt__media_ior(stack, kdrt__media_current(stack, entry));
     return x;
 }
+
+#if defined(KDRT__AVX2) && defined(_MSC_VER) && !defined(__clang__)
+#pragma warning(pop) /* C4752, from the AVX2 kernel on */
+#endif
 
 #ifdef __cplusplus
 }
