@@ -3592,7 +3592,7 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
 #define KDRT__TARGET_AVX512
 #endif
 #if defined(_MSC_VER) && defined(__clang__)
-/* clang-cl's immintrin.h, as MSVC's, declares only the intrinsics the command line enables
+/* clang-cl's immintrin.h, unlike MSVC's, declares only the intrinsics the command line enables
    (/arch): those of the target attributes are named here (SSE4.1's for _MM_FROUND_*). */
 #include <smmintrin.h>
 #include <avxintrin.h>
