@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
 # kdrt on Windows, run under wine: the smoke tests, the examples that need only the header, and
-# kernel_report.c, built by mingw-w64 GCC; and kernel_report linked with kdrt's implementation
-# compiled by clang for MSVC's target (as clang-cl compiles it, and in cl.exe's macro set, as
-# msvc.sh compiles them), which runs its cpuid check. kernel_report checks that a default tree
-# runs the AVX-512 or AVX2 kernel where this CPU has it (wine passes the CPU's features
-# through), an AVX2-flagged one AVX2, a scalar-flagged one the scalar kernel, and that all
-# answer alike bit for bit.
+# kernel_report.c, built by mingw-w64 GCC; kernel_report by clang for mingw-w64 too; and
+# kernel_report linked with kdrt's implementation compiled by clang for MSVC's target (as
+# clang-cl compiles it, and in cl.exe's macro set, as msvc.sh compiles them), which runs its
+# cpuid check. kernel_report checks that a default tree runs the AVX-512 or AVX2 kernel where
+# this CPU has it (wine passes the CPU's features through), an AVX2-flagged one AVX2, a
+# scalar-flagged one the scalar kernel, and that all answer alike bit for bit.
 #   tests/platforms/windows.sh
 # Compiled as CMake compiles them (the Release build's -O3 -DNDEBUG, tests/CMakeLists.txt's and
 # examples/CMakeLists.txt's warnings, as errors; kernel_report at -O2 with assertions on),
 # linked with -static so that wine needs no DLL path. Uses x86_64-w64-mingw32-gcc-posix,
-# -g++-posix and -nm, clang, /usr/lib/wine/wine64 and wineserver (KDRT_MINGW_CC, KDRT_MINGW_CXX,
+# -g++-posix and -nm, clang and lld, /usr/lib/wine/wine64 and wineserver (KDRT_MINGW_CC, KDRT_MINGW_CXX,
 # KDRT_MINGW_NM, KDRT_CLANG, KDRT_WINE, KDRT_WINESERVER override them), and CC (or cc) for a
 # native kernel_report, whose answers each Windows build must give bit for bit. Prints what it
 # runs; exits non-zero on any failure.
@@ -98,6 +98,11 @@ compile kdrt_cl_macros.obj "${msvc[@]}" -U__clang__ -x c -std=c99 -O2 -ffp-contr
     -DKDRT_TRAVERSAL_STATS "${warnings[@]}" "${strict[@]}" "${include[@]}" -c "$root/tests/platforms/cl_macros.c"
 compile kernel_report_linked.o "$cc" -std=c99 -O2 -DKERNEL_REPORT_LINKED "${warnings[@]}" "${strict[@]}" \
     "${include[@]}" -c "$root/tests/platforms/kernel_report.c"
+# clang for mingw-w64 (as llvm-mingw builds): the GCC path, __builtin_cpu_supports from the
+# runtime library (here libgcc's, which clang finds in mingw-w64 GCC's directory).
+compile kernel_report_clang_mingw.exe "$clang" --target=x86_64-w64-mingw32 -fuse-ld=lld -std=c99 -O2 \
+    "${warnings[@]}" "${strict[@]}" "${include[@]}" "$root/tests/platforms/kernel_report.c" -static \
+    -L"$(dirname "$("$cc" -print-libgcc-file-name)")"
 # And natively, for the answers Linux gives.
 compile kernel_report_native "$host_cc" -std=c99 -O2 "${warnings[@]}" "${strict[@]}" "${include[@]}" \
     "$root/tests/platforms/kernel_report.c" -lm
@@ -186,7 +191,7 @@ if ! (cd "$work" && ./kernel_report_native) >"$work/native.txt"; then
 fi
 sed 's/^/    /' "$work/native.txt"
 answers=$(grep -m1 '^answers: ' "$work/native.txt" || echo "answers: none")
-for report in kernel_report kernel_report_clang_cl kernel_report_cl_macros; do
+for report in kernel_report kernel_report_clang_mingw kernel_report_clang_cl kernel_report_cl_macros; do
     run "$report" "^kernel default: $default_kernel " "^kernel KDRT_BUILD_AVX2_KERNEL: $avx2_kernel " \
         "^kernel KDRT_BUILD_SCALAR_KERNEL: scalar " "^$answers\$" "^kernel_report: all checks passed$"
 done
