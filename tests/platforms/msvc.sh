@@ -194,7 +194,7 @@ cat >"$work/vector_operations.awk" <<'EOF'
     # a vector cast to another vector's type (MSVC has the _mm*_cast* intrinsics for that)
     if (line ~ /CastExpr / && line ~ /<BitCast>/) { print node_file ": a cast: " line; next }
     if (line !~ /-(BinaryOperator|CompoundAssignOperator|UnaryOperator) /) next
-    if (line ~ /-BinaryOperator / && line ~ /'(=|,)'$/) next
+    if (line ~ /-BinaryOperator / && line ~ /'(=|,)'( |$)/) next
     if (line ~ /-UnaryOperator / && line ~ /prefix '\*'/) next
     print node_file ": " line
 }
