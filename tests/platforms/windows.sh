@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# kdrt on Windows, run under wine: the smoke tests, the examples that need only the header, and
-# kernel_report.c, built by mingw-w64 GCC; kernel_report by clang for mingw-w64 too; and
-# kernel_report linked with kdrt's implementation compiled by clang for MSVC's target (as
-# clang-cl compiles it, and in cl.exe's macro set, as msvc.sh compiles them), which runs its
-# cpuid check. kernel_report checks that a default tree runs the AVX-512 or AVX2 kernel where
-# this CPU has it (wine passes the CPU's features through), an AVX2-flagged one AVX2, a
-# scalar-flagged one the scalar kernel, and that all answer alike bit for bit.
+# kdrt on Windows, run under wine: the smoke tests, the examples that need only the header, the
+# stored answers (answers.c) and kernel_report.c, built by mingw-w64 GCC; kernel_report by clang
+# for mingw-w64 too; and kernel_report linked with kdrt's implementation compiled by clang for
+# MSVC's target (as clang-cl compiles it, and in cl.exe's macro set, as msvc.sh compiles them),
+# which runs its cpuid check. kernel_report checks that a default tree runs the AVX-512 or AVX2
+# kernel where this CPU has it (wine passes the CPU's features through), an AVX2-flagged one
+# AVX2, a scalar-flagged one the scalar kernel, and that all answer alike bit for bit.
 #   tests/platforms/windows.sh
 # Compiled as CMake compiles them (the Release build's -O3 -DNDEBUG, tests/CMakeLists.txt's and
 # examples/CMakeLists.txt's warnings, as errors; kernel_report at -O2 with assertions on),
 # linked with -static so that wine needs no DLL path. Uses x86_64-w64-mingw32-gcc-posix,
-# -g++-posix and -nm, clang and lld, /usr/lib/wine/wine64 and wineserver (KDRT_MINGW_CC, KDRT_MINGW_CXX,
+# -g++-posix and -nm, clang, /usr/lib/wine/wine64 and wineserver (KDRT_MINGW_CC, KDRT_MINGW_CXX,
 # KDRT_MINGW_NM, KDRT_CLANG, KDRT_WINE, KDRT_WINESERVER override them), and CC (or cc) for a
 # native kernel_report, whose answers each Windows build must give bit for bit. Prints what it
 # runs; exits non-zero on any failure.
@@ -82,25 +82,27 @@ compile engine.exe "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include
     "$root/examples/engine.cpp" -static -pthread
 compile instances.exe "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include[@]}" \
     "$root/examples/instances.cpp" -static
+# The stored answers (answers.c, answers.txt: every kernel this CPU has, bit for bit), built as
+# native.sh's strict C99 build is.
+compile answers.exe "$cc" -std=c99 -O2 "${warnings[@]}" "${include[@]}" "$root/tests/platforms/answers.c" -static
 # kernel_report with kdrt's assertions on (no NDEBUG), at the strict warnings.
 compile kernel_report.exe "$cc" -std=c99 -O2 "${warnings[@]}" "${strict[@]}" "${include[@]}" \
     "$root/tests/platforms/kernel_report.c" -static
 # kdrt compiled by clang for MSVC's target, as clang-cl compiles it and in cl.exe's macro set
-# (msvc.sh says what each stands for; -ffp-contract=off: VS2022's /fp:precise contracts nothing,
-# and cl_macros.c gives every function FMA), each linked by mingw-w64 with kernel_report (C's
-# MSVC ABI is mingw-w64's): the cpuid check and those builds' kernels at work under wine.
+# (msvc.sh and cl_macros.c say what each stands for), each linked by mingw-w64 with
+# kernel_report (C's MSVC ABI is mingw-w64's): the cpuid check and those builds' kernels at work
+# under wine.
 msvc=("$clang" --target=x86_64-pc-windows-msvc -fms-extensions -fms-compatibility
       -fms-compatibility-version=19.30 -isystem "$root/tests/platforms/msvc-libc")
 printf '#define KDRT_IMPLEMENTATION\n#include "kdrt.h"\n' >"$work/clang_cl.c"
 compile kdrt_clang_cl.obj "${msvc[@]}" -x c -std=c99 -O2 -DKDRT_TRAVERSAL_STATS "${warnings[@]}" \
     "${strict[@]}" "${include[@]}" -c clang_cl.c
-compile kdrt_cl_macros.obj "${msvc[@]}" -U__clang__ -x c -std=c99 -O2 -ffp-contract=off \
-    -DKDRT_TRAVERSAL_STATS "${warnings[@]}" "${strict[@]}" "${include[@]}" -c "$root/tests/platforms/cl_macros.c"
+compile kdrt_cl_macros.obj "${msvc[@]}" -U__clang__ -x c -std=c99 -O2 -DKDRT_TRAVERSAL_STATS "${warnings[@]}" "${strict[@]}" "${include[@]}" -c "$root/tests/platforms/cl_macros.c"
 compile kernel_report_linked.o "$cc" -std=c99 -O2 -DKERNEL_REPORT_LINKED "${warnings[@]}" "${strict[@]}" \
     "${include[@]}" -c "$root/tests/platforms/kernel_report.c"
 # clang for mingw-w64 (as llvm-mingw builds): the GCC path, __builtin_cpu_supports from the
-# runtime library (here libgcc's, which clang finds in mingw-w64 GCC's directory).
-compile kernel_report_clang_mingw.exe "$clang" --target=x86_64-w64-mingw32 -fuse-ld=lld -std=c99 -O2 \
+# runtime library (here libgcc's, in mingw-w64 GCC's directory; linked by mingw-w64's ld).
+compile kernel_report_clang_mingw.exe "$clang" --target=x86_64-w64-mingw32 -std=c99 -O2 \
     "${warnings[@]}" "${strict[@]}" "${include[@]}" "$root/tests/platforms/kernel_report.c" -static \
     -L"$(dirname "$("$cc" -print-libgcc-file-name)")"
 # And natively, for the answers Linux gives.
@@ -143,13 +145,15 @@ fi
 echo "wine prefix ready at $((SECONDS - start)) s"
 
 failures=0
-# run NAME EXPECTED... : runs NAME.exe under wine; it must exit 0 and its output (CRLF made LF)
-# must hold each EXPECTED line (a grep -E pattern).
+# run NAME EXPECTED... : runs NAME.exe under wine (answers.exe with answers.txt, as its header
+# comment says); it must exit 0 and its output (CRLF made LF) must hold each EXPECTED line (a
+# grep -E pattern).
 run() {
-    local name=$1 status=0 pattern
+    local name=$1 status=0 pattern arguments=()
     shift
-    echo "+ $wine $name.exe"
-    (cd "$work" && "$wine" "$name.exe") >"$work/$name.out" 2>"$work/$name.err" || status=$?
+    if [ "$name" = answers ]; then arguments=(answers.txt); fi
+    echo "+ $wine $name.exe ${arguments[*]}"
+    (cd "$work" && "$wine" "$name.exe" "${arguments[@]}") >"$work/$name.out" 2>"$work/$name.err" || status=$?
     tr -d '\r' <"$work/$name.out" >"$work/$name.txt"
     sed 's/^/    /' "$work/$name.txt"
     if [ "$status" != 0 ]; then
@@ -184,6 +188,10 @@ if has avx2; then
     if has avx512f; then default_kernel=avx512; fi
 fi
 echo "this CPU: the default tree should run the $default_kernel kernel"
+cp "$root/tests/platforms/answers.txt" "$work/answers.txt"
+run answers "^answers: kernel $default_kernel, builder sah: 640 rays, 0 differ from the file, 0 batch answers differ$" \
+    "^answers: kernel scalar, builder sah: 640 rays, 0 differ from the file, 0 batch answers differ$" \
+    "^[1-9][0-9]* passed, 0 failed$"
 echo "+ kernel_report_native"
 if ! (cd "$work" && ./kernel_report_native) >"$work/native.txt"; then
     echo "windows.sh: FAILED: the native kernel_report failed" >&2
