@@ -1000,8 +1000,10 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #error "kdrt: compile the file that defines KDRT_IMPLEMENTATION with SSE2 arithmetic (GCC and Clang: -msse2 -mfpmath=sse; MSVC: /arch:SSE2): x87's 80-bit intermediates give other answers than every other platform's"
 #endif
 
-/* SSE2, part of x86-64 itself: the builder's binning (kdrt__bin_refs), with no target attribute. */
-#if !defined(KDRT_NO_SIMD) && defined(__SSE2__)
+/* SSE2, part of x86-64 itself: the builder's binning (kdrt__bin_refs), with no target attribute.
+   MSVC defines no __SSE2__ on x64 (ARM64EC defines _M_X64 too, but emulates x64 code). */
+#if !defined(KDRT_NO_SIMD) &&                                                                      \
+    (defined(__SSE2__) || (defined(_M_X64) && !defined(_M_ARM64EC)))
 #define KDRT__SSE2 1
 #include <emmintrin.h>
 #endif
@@ -3595,19 +3597,78 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
 
 /* ==== the AVX2 kernel: 8 triangles at a time ==== */
 
-/* Compiled with the compiler's per-function target attribute, so no -mavx2 is needed, and chosen
-   when a tree is built if the CPU has AVX2 (kdrt__cpu_has_avx2). Not where KDRT_NO_SIMD is
-   defined, nor off x86-64 or on compilers without the attribute (MSVC: the scalar kernel). The
+/* Compiled with the compiler's per-function target attribute (GCC, Clang, clang-cl), so no -mavx2
+   is needed, or on MSVC, whose intrinsics need no flag, with none; chosen when a tree is built if
+   the CPU has AVX2 (kdrt__cpu_has_avx2). Not where KDRT_NO_SIMD is defined, nor off x86-64. The
    target is "avx2" alone, not FMA: without FMA instructions the compiler cannot fuse a multiply
    and an add, so each operation rounds as the scalar kernel's does and the answers are the same
    bit for bit. */
-#if !defined(KDRT_NO_SIMD) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#if !defined(KDRT_NO_SIMD) &&                                                                      \
+    ((defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))) ||                        \
+     (defined(_MSC_VER) && defined(_M_X64) && !defined(_M_ARM64EC)))
 #define KDRT__AVX2 1
 #include <immintrin.h>
+#if defined(_MSC_VER) && !defined(__clang__)
+/* cl.exe names each function with AVX code compiled without /arch:AVX (C4752): kdrt's run
+   only where the CPU check found AVX2. Popped at the end of the implementation. */
+#pragma warning(push)
+#pragma warning(disable : 4752)
+#endif
+#if defined(__GNUC__) || defined(__clang__)
 #define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
 /* The AVX-512 kernel: the AVX2 kernel, and a batch's packets 16 rays wide (BATCHES). */
 #define KDRT__TARGET_AVX512 __attribute__((target("avx2,avx512f")))
+#else
+#define KDRT__TARGET_AVX2
+#define KDRT__TARGET_AVX512
+#endif
+#if defined(_MSC_VER) && defined(__clang__)
+/* clang-cl's immintrin.h, unlike MSVC's, declares only the intrinsics the command line enables
+   (/arch): those of the target attributes are named here (SSE4.1's for _MM_FROUND_*). */
+#include <smmintrin.h>
+#include <avxintrin.h>
+#include <avx2intrin.h>
+#include <avx512fintrin.h>
+#endif
 
+#if defined(_MSC_VER)
+#include <intrin.h> /* __cpuid, __cpuidex, _BitScanForward */
+/* What __builtin_cpu_supports asks, from cpuid and xgetbv, with nothing beyond the CRT (clang-cl's
+   __builtin_cpu_supports needs compiler-rt, which MSVC links lack): 2 where the CPU has AVX2 and
+   AVX512F and the OS saves the ZMM registers, 1 where it has AVX2 and the OS saves the YMM ones,
+   else 0. */
+#if defined(__clang__)
+__attribute__((target("xsave")))
+#endif
+static int kdrt__cpu_vector_level(void)
+{
+    const unsigned osxsave_and_avx = 1u << 27 | 1u << 28; /* cpuid 1, ecx */
+    const unsigned avx2 = 1u << 5, avx512f = 1u << 16;    /* cpuid 7, ebx */
+    int info[4];
+    unsigned long long xcr0;
+    __cpuid(info, 0);
+    if (info[0] < 7) return 0;
+    __cpuid(info, 1);
+    if (((unsigned)info[2] & osxsave_and_avx) != osxsave_and_avx) return 0;
+    xcr0 = _xgetbv(0);
+    if ((xcr0 & 0x6u) != 0x6u) return 0; /* XCR0 bits 1, 2: the XMM and YMM registers */
+    __cpuidex(info, 7, 0);
+    if (!((unsigned)info[1] & avx2)) return 0;
+    /* bits 5, 6, 7: the mask registers, the ZMM registers' upper halves, ZMM16 to ZMM31 */
+    return ((unsigned)info[1] & avx512f) && (xcr0 & 0xE0u) == 0xE0u ? 2 : 1;
+}
+
+static int kdrt__cpu_has_avx2(void) { return kdrt__cpu_vector_level() >= 1; }
+static int kdrt__cpu_has_avx512(void) { return kdrt__cpu_vector_level() >= 2; }
+
+/* The lowest set bit of bits (not 0). */
+static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits)
+{
+    unsigned long index;
+    _BitScanForward(&index, bits);
+    return (unsigned)index;
+}
+#else
 static int kdrt__cpu_has_avx2(void)
 {
     __builtin_cpu_init(); /* idempotent; needed when called before constructors have run */
@@ -3619,6 +3680,10 @@ static int kdrt__cpu_has_avx512(void)
     __builtin_cpu_init(); /* also checks that the OS saves the AVX-512 registers */
     return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f");
 }
+
+/* The lowest set bit of bits (not 0). */
+static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits) { return (unsigned)__builtin_ctz(bits); }
+#endif
 
 /* What a block test found: the lanes whose triangles the ray meets (its return value, a bit a
    lane), their t, u, v, and front, a bit a lane set where the ray meets the front face. The block
@@ -3639,7 +3704,7 @@ static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned
 {
     int found = 0;
     for (; mask; mask &= mask - 1u) {
-        const unsigned lane = (unsigned)__builtin_ctz(mask), id = block->id[lane];
+        const unsigned lane = kdrt__ctz(mask), id = block->id[lane];
         found |= ruled
                      ? kdrt__accept_ruled(best, id, c->t[lane], c->u[lane], c->v[lane],
                                           (int)((c->front >> lane) & 1u), s)
@@ -5493,6 +5558,10 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
     return x;
 }
 
+#if defined(KDRT__AVX2) && defined(_MSC_VER) && !defined(__clang__)
+#pragma warning(pop) /* C4752, from the AVX2 kernel on */
+#endif
+
 #ifdef __cplusplus
 }
 #endif
@@ -5777,7 +5846,7 @@ KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_leaf)(const kdrt_tree *tree,
             /* More triangles left than rays: each ray's test of the block costs less. */
             unsigned left;
             for (left = lanes; left; left &= left - 1u) {
-                const unsigned lane = (unsigned)__builtin_ctz(left);
+                const unsigned lane = kdrt__ctz(left);
                 kdrt__candidates c;
                 const unsigned mask = kdrt__block_test_apart(block, &p->s[lane], &c);
                 KDRT__COUNT(stats, block_tests, 1);
@@ -5790,7 +5859,7 @@ KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_leaf)(const kdrt_tree *tree,
             continue;
         }
         for (; triangles; triangles &= triangles - 1u) {
-            const unsigned j = (unsigned)__builtin_ctz(triangles), id = block->id[j];
+            const unsigned j = kdrt__ctz(triangles), id = block->id[j];
             kdrt__v fx[3], fy[3], fz[3];
             kdrt__candidates c;
             unsigned hits;
@@ -5805,7 +5874,7 @@ KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_leaf)(const kdrt_tree *tree,
                 fz[k] = kdrt__v_mul(sz, dz);
             }
             for (hits = KDRT__W(kdrt__watertight_lanes)(fx, fy, fz, lanes, &c); hits; hits &= hits - 1u) {
-                const unsigned lane = (unsigned)__builtin_ctz(hits);
+                const unsigned lane = kdrt__ctz(hits);
                 kdrt_hit *best = p->best[lane];
                 if (!kdrt__accept(best, id, c.t[lane], c.u[lane], c.v[lane], &p->s[lane])) continue;
                 p->bound[lane] = best->t;
@@ -5888,7 +5957,7 @@ KDRT__W_TARGET static KDRT__FORCEINLINE void KDRT__W(kdrt__packet_walk_from)(
                 p->found |= found, p->lanes &= ~found, lanes &= ~found;
             } else {
                 for (cells = lanes; cells; cells &= cells - 1u) {
-                    lane = (unsigned)__builtin_ctz(cells);
+                    lane = kdrt__ctz(cells);
                     if (kdrt__test_leaf_apart(tree, n, &p->s[lane], p->best[lane], any_hit, stats)) {
                         p->found |= 1u << lane, p->lanes &= ~(1u << lane);
                         continue;
@@ -5899,7 +5968,7 @@ KDRT__W_TARGET static KDRT__FORCEINLINE void KDRT__W(kdrt__packet_walk_from)(
             if (!any_hit) /* the lanes whose best hit so far may lie here */
                 for (cells = lanes & kdrt__m_bits(kdrt__v_cmp(kdrt__v_load(p->bound), t1, _CMP_LE_OQ));
                      cells; cells &= cells - 1u)
-                    p->hit_cell[__builtin_ctz(cells)] = node;
+                    p->hit_cell[kdrt__ctz(cells)] = node;
         }
         /* Next node, with the lanes still walking that start it no later than their best hit. */
         for (;;) {
@@ -5976,7 +6045,7 @@ KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_setup)(const kdrt_tree *tree
     /* kz, the first axis of the largest |dir| (kdrt__setup_ray's): 1 where kz1 and not kz2, 2 where kz2 */
     kz1 = kdrt__v_cmp(abs_d[1], abs_d[0], _CMP_GT_OQ);
     kz2 = kdrt__v_cmp(abs_d[2], kdrt__v_blend(abs_d[0], abs_d[1], kz1), _CMP_GT_OQ);
-    first = (unsigned)__builtin_ctz(lanes);
+    first = kdrt__ctz(lanes);
     {
         const unsigned m1 = kdrt__m_bits(kz1), m2 = kdrt__m_bits(kz2);
         lanes &= kdrt__same_bit(negative[0], first) & kdrt__same_bit(negative[1], first) &
@@ -6003,7 +6072,7 @@ KDRT__W_TARGET static unsigned KDRT__W(kdrt__packet_setup)(const kdrt_tree *tree
         kdrt__v_range(x[a], lanes, &p->lo[a], &p->hi[a]);
     p->point = p->lo[0] == p->hi[0] && p->lo[1] == p->hi[1] && p->lo[2] == p->hi[2];
     for (left = lanes; left; left &= left - 1u) {
-        const unsigned lane = (unsigned)__builtin_ctz(left);
+        const unsigned lane = kdrt__ctz(left);
         kdrt__ray_setup *s = &p->s[lane];
         for (a = 0; a < 3; ++a)
             s->org[a] = p->org[a][lane], s->dir[a] = dirs[a][lane], s->inv_dir[a] = p->inv_dir[a][lane];
@@ -6077,7 +6146,7 @@ KDRT__W_TARGET static uint32_t KDRT__W(kdrt__batch)(const kdrt_tree *tree, const
         if (walked) KDRT__W(kdrt__packet_walk)(tree, &p, t0, t1, any_hit, stats);
         walked &= ~p.alone;
         for (left = p.alone; left; left &= left - 1u) { /* handed back during the walk: anew */
-            const unsigned l = (unsigned)__builtin_ctz(left);
+            const unsigned l = kdrt__ctz(left);
             kdrt__miss(p.best[l]);
             p.best[l]->t = p.s[l].tmax;
         }
