@@ -5,12 +5,12 @@
 
    both: each kernel traces the rays (nearest hit, watertight test), one after the other, best of
    3 runs each; prints ms and rays/s for each, and exit 1 when any answer differs. simd or scalar:
-   that kernel alone, once (tests/platforms/count_instructions.sh counts its instructions;
-   RAYS 0 builds the tree and traces nothing). Both print a checksum of the answers' bits, the
-   same on every build whose compiler fuses no multiply-add in kdrt.h. The mesh is made here, from integer hashes and square roots (correctly
-   rounded everywhere) with no multiply-add a compiler could fuse, so every target traces the
-   same floats: a bumpy sphere of 49,152 triangles, and rays from a sphere around it aimed at
-   points inside it. Strict C99, the header only. */
+   that kernel alone, once (tests/platforms/count_instructions.sh counts its instructions; RAYS 0
+   builds the tree and traces nothing). Both print a checksum of the answers' bits, the same on
+   every build whose compiler fuses no multiply-add in kdrt.h. The mesh is made here, from
+   integer hashes and square roots (correctly rounded everywhere) with no multiply-add a compiler
+   could fuse, so every target traces the same floats: a bumpy sphere of 49,152 triangles, and
+   rays from a sphere around it aimed at points inside it. Strict C99, the header only. */
 #define _POSIX_C_SOURCE 199309L /* clock_gettime */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
