@@ -61,8 +61,11 @@
                                  each packet width (KERNELS); set it when the file is renamed
      The file with the implementation must be compiled with IEEE arithmetic: -ffast-math,
      -ffinite-math-only and MSVC's /fp:fast stop it with an #error (the other files may use
-     them). Flags that change rounding without a macro to tell (-fassociative-math alone, say)
-     break the answers' bits silently: leave them off that file too.
+     them), and so does i386's x87 arithmetic (use -msse2 -mfpmath=sse). Contraction into FMAs
+     is turned off inside the implementation whatever the command line says (PLATFORMS), except
+     that Clang ignores that under an explicit -ffp-contract=fast. Flags that change rounding
+     without a macro to tell (-fassociative-math alone, say) break the answers' bits silently:
+     leave them off that file too.
      In every file, the same everywhere:
        KDRT_API                  the functions' linkage (default: extern, or static under
                                  KDRT_STATIC), e.g. a DLL export attribute
@@ -288,12 +291,10 @@
      the scalar test's operations in the same order and without FMA, so they return the same
      answers bit for bit (the tests compare them on 1.4 million rays). Before its exact
      watertight test, the AVX2 kernel leaves a block early when float products already prove
-     that the ray misses all 8 triangles: a filter that changes no answer. Where the compiler
-     contracts multiply-adds into FMAs (-march=native with -ffp-contract=fast), each kernel keeps
-     every guarantee above but their last bits may differ (a batch's answers stay the single
-     calls' in either case).
-     AVX-512 implies FMA, so its packet code names the rounding of each operation, which keeps
-     the compiler from fusing them. On MSVC and off x86-64 the scalar kernel runs. The SAH
+     that the ray misses all 8 triangles: a filter that changes no answer. The compiler may not
+     fuse a multiply and an add into an FMA anywhere in the implementation (PLATFORMS), so
+     -march=native or GCC's GNU modes change no bit either. AVX-512 implies FMA; its packet code
+     also names the rounding of each operation, which no compiler fuses. On MSVC and off x86-64 the scalar kernel runs. The SAH
      builder bins references with SSE2 (part of x86-64: no attribute needed), each lane rounding
      as the scalar code does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL bins with the
      scalar code too.
@@ -853,8 +854,6 @@ KDRT_API int kdrt_scene_occluded(const kdrt_scene *scene, const kdrt_ray *ray,
                                  const kdrt_query *query);
 /* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
    kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
-/* kdrt_intersect_batch() and kdrt_occluded_batch() on a scene: each ray answered as
-   kdrt_scene_intersect() / kdrt_scene_occluded() answer it. */
 KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt_ray *rays,
                                              uint32_t count, const kdrt_query *query,
                                              kdrt_hit *hits);
@@ -969,13 +968,39 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #include <math.h>   /* INFINITY; sqrt, fma and fabs (libm) */
 #include <stdlib.h> /* qsort, and malloc/free unless KDRT_MALLOC is defined */
 #include <string.h>
-/* The NaN and infinity checks (x - x == 0, t != t) and the exact tests need IEEE arithmetic, which
-   -ffast-math and -ffinite-math-only (MSVC: /fp:fast) let the compiler fold away: NaN vertices
-   were accepted, NaN rays hit, and the kernels disagreed. So the implementation refuses them;
-   the files that only include the header are free to use them. */
+/* The exact tests and the walk's NaN checks (t != t) need IEEE arithmetic, which -ffast-math and
+   -ffinite-math-only (MSVC: /fp:fast) let the compiler fold away: rays with NaN hit, and the
+   kernels disagreed. So the implementation refuses them (the input checks are bit tests and
+   would survive); the files that only include the header are free to use them. */
 #if defined(__FAST_MATH__) || (defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__) ||           \
     defined(_M_FP_FAST)
 #error "kdrt: compile the file that defines KDRT_IMPLEMENTATION without -ffast-math, -ffinite-math-only or /fp:fast: its NaN and infinity checks and its exact tests need IEEE arithmetic (the files that only include kdrt.h may keep them)"
+#endif
+
+/* The same answers on every platform: each operation rounds once, as written. A compiler that
+   fuses a * b + c into one FMA (GCC in its GNU modes, which CMake's defaults are; Clang wherever
+   the target has FMA, -march=haswell or aarch64; MSVC's /fp:contract) changes the last bits of t,
+   u and v, and the kernels would disagree between machines. So contraction is off for the
+   implementation, whatever the command line says, and restored after it. Clang alone ignores
+   these pragmas under an explicit -ffp-contract=fast: do not give it that for this file. */
+#if defined(__clang__)
+#pragma float_control(push)
+#pragma clang fp contract(off)
+#elif defined(__GNUC__)
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=off")
+#elif defined(_MSC_VER)
+#pragma fp_contract(off)
+#endif
+
+/* x87 arithmetic (i386 without SSE2) keeps intermediates in 80 bits and rounds them when it
+   spills them: its answers differ from every other platform's, and from run to run of the
+   optimiser's choices. Refused: float and double must be evaluated in their own precision
+   (FLT_EVAL_METHOD 0, or 16 where the CPU has half floats). */
+#include <float.h>
+#if (defined(FLT_EVAL_METHOD) && (FLT_EVAL_METHOD == 1 || FLT_EVAL_METHOD == 2)) ||               \
+    (defined(_M_IX86) && (!defined(_M_IX86_FP) || _M_IX86_FP < 2))
+#error "kdrt: compile the file that defines KDRT_IMPLEMENTATION with SSE2 arithmetic (GCC and Clang: -msse2 -mfpmath=sse; MSVC: /arch:SSE2): x87's 80-bit intermediates give other answers than every other platform's"
 #endif
 
 /* SSE2, part of x86-64 itself: the builder's binning (kdrt__bin_refs), with no target attribute. */
@@ -1134,8 +1159,14 @@ struct kdrt_tree {
 
 /* ==== small helpers: floats, cross products, allocation ==== */
 
-/* x - x is 0 for finite x and NaN for NaN or infinity; NaN compares false. */
-static int kdrt__finite(float x) { return x - x == 0.0f; }
+/* Finite: the exponent bits not all ones (those are NaN and the infinities). A bit test, not a
+   float comparison, so no compiler's finite-math assumption can fold it away. */
+static int kdrt__finite(float x)
+{
+    uint32_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    return (bits & 0x7f800000u) != 0x7f800000u;
+}
 static float kdrt__abs(float x) { return x < 0.0f ? -x : x; }
 
 /* The next float towards +infinity / -infinity (finite x). */
@@ -5750,6 +5781,11 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 
 #ifdef __cplusplus
 }
+#endif
+#if defined(__clang__)
+#pragma float_control(pop)
+#elif defined(__GNUC__)
+#pragma GCC pop_options
 #endif
 #endif /* KDRT_IMPLEMENTATION */
 

@@ -25,9 +25,20 @@ PACKAGES=(
   xdotool             # kdrt-view's tests: key events sent to its real X11 window
 )
 
+# The cross toolchains of the platform checks (tests/platforms/run.sh), with --platforms only.
+PLATFORM_PACKAGES=(
+  libc6-dev-i386              # i386 with SSE2 (gcc -m32; not gcc-multilib, which the aarch64
+  lib32gcc-12-dev             #   cross compiler conflicts with)
+  g++-mingw-w64-x86-64-posix  # Windows, mingw-w64
+  wine64                      # ... run under wine
+  g++-aarch64-linux-gnu       # aarch64 (the NEON kernel)
+  qemu-user                   # ... run under qemu-aarch64
+  emscripten                  # WebAssembly, run under node (node-acorn comes with it)
+)
+
 usage() {
   cat <<USAGE
-usage: bash tools/setup.sh [--check] [--list] [--lock-timeout SECONDS] [--help]
+usage: bash tools/setup.sh [--platforms] [--check] [--list] [--lock-timeout SECONDS] [--help]
 
 Installs the Debian packages kdrt needs that are not installed yet:
   ${PACKAGES[*]}
@@ -37,6 +48,8 @@ missing ones, non-interactively, through sudo unless it runs as root. Made for D
 When another package manager holds apt's or dpkg's lock (unattended upgrades on a fresh
 machine), it says so and waits for it, up to --lock-timeout seconds.
 
+  --platforms              also the cross toolchains of tests/platforms/run.sh:
+                           ${PLATFORM_PACKAGES[*]}
   --check                  only report missing packages; exit 1 if any are missing
   --list                   print the package list, one per line
   --lock-timeout SECONDS   how long to wait for a held lock (default 600)
@@ -51,6 +64,7 @@ while [[ $# -gt 0 ]]; do
     -h|--help) usage; exit 0 ;;
     --list) printf '%s\n' "${PACKAGES[@]}"; exit 0 ;;
     --check) check_only=1 ;;
+    --platforms) PACKAGES+=("${PLATFORM_PACKAGES[@]}") ;;
     --lock-timeout)
       if [[ $# -lt 2 || ! $2 =~ ^[0-9]+$ ]]; then
         echo "setup.sh: --lock-timeout wants a whole number of seconds, not '${2-}'" >&2; exit 2
