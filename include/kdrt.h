@@ -984,7 +984,13 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
    implementation, whatever the command line says, and restored after it. Clang alone ignores
    these pragmas under an explicit -ffp-contract=fast: do not give it that for this file. */
 #if defined(__clang__)
+/* Clang 14 supports float_control only where the target has strict FP (x86, not aarch64 or
+   wasm): elsewhere its push and pop are ignored, quietly, and contract(off) holds to the end of
+   the file. */
+#pragma clang diagnostic push
+#pragma clang diagnostic ignored "-Wignored-pragmas"
 #pragma float_control(push)
+#pragma clang diagnostic pop
 #pragma clang fp contract(off)
 #elif defined(__GNUC__)
 #pragma GCC push_options
@@ -5783,7 +5789,10 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 }
 #endif
 #if defined(__clang__)
+#pragma clang diagnostic push
+#pragma clang diagnostic ignored "-Wignored-pragmas"
 #pragma float_control(pop)
+#pragma clang diagnostic pop
 #elif defined(__GNUC__)
 #pragma GCC pop_options
 #endif

@@ -75,7 +75,7 @@ step "the core suites' kernel and answer tests and the smoke tests under qemu"
 # 2,000. Left out: the builder's tests (allocation failures, the parallel build, hostile and far
 # geometry, errors, inspection, scenes) and the batches' allocation count, which do not depend on
 # the kernel; the native build runs them all.
-kernel_tests='^(kernels: |random triangle soups|height field grids|spheres agree|watertight: |hard sets: |query: |k nearest: every hit of small|cells: a ray started|batch: (coherent|packets|every|culled|scenes|NULL|several)|smoke_)'
+kernel_tests='^(kernels: |random triangle soups|height field grids|spheres agree|watertight: |hard sets: |query: |k nearest: every hit of small|cells: a ray started|batch: (coherent|packets|every|culled|scenes|NULL|several)|smoke_|stored_answers)'
 scalar_tests='^scalar: ?(kernels: |random triangle soups|height field grids|spheres agree)'
 KDRT_TEST_RAYS=4000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$kernel_tests"
 KDRT_TEST_RAYS=2000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$scalar_tests"
