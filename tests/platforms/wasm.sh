@@ -22,6 +22,7 @@ conversions=(-Wconversion -Wsign-conversion -Wshadow)
 # A node program, its .wasm inside the .js: node 20's fetch cannot load a .wasm by path, which
 # the default asynchronous loading tries; EXIT_RUNTIME so that node exits when main returns.
 link=(-sENVIRONMENT=node -sSINGLE_FILE=1 -sEXIT_RUNTIME=1 -sALLOW_MEMORY_GROWTH=1)
+# shellcheck disable=SC2054  # node,worker is one emcc setting
 threads=(-pthread -sENVIRONMENT=node,worker -sSINGLE_FILE=1 -sEXIT_RUNTIME=1 -sPTHREAD_POOL_SIZE=8
          -sINITIAL_MEMORY=268435456)
 
