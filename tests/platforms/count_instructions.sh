@@ -25,7 +25,7 @@ esac
 "${target[@]}" -std=c99 -O2 -Iinclude tests/platforms/kernel_speed.c -o "$work/kernel_speed" -lm
 
 count() { "${qemu[@]}" "$work/kernel_speed" "$1" "$2" 2>&1 | sed -n 's/^instructions //p'; }
-answers() { qemu-aarch64 -L /usr/aarch64-linux-gnu "$work/kernel_speed" "$1" "$2" | sed -n 's/.*checksum //p'; }
+answers() { qemu-aarch64 -L /usr/aarch64-linux-gnu "$work/kernel_speed" "$1" "$2" | sed -n 's/.*checksum \([0-9a-f]*\).*/\1/p'; }
 declare -A per_ray
 for kernel in simd scalar; do
   base=$(count 0 $kernel) total=$(count "$rays" $kernel)
