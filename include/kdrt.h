@@ -539,8 +539,11 @@ typedef enum kdrt_kernel {
     KDRT_KERNEL_SCALAR = 0, /* portable C */
     KDRT_KERNEL_AVX2 = 1,   /* x86-64 with AVX2: a leaf's triangles tested 8 at a time, a
                                batch's rays walked in packets of 8 */
-    KDRT_KERNEL_AVX512 = 2  /* x86-64 with AVX-512: the AVX2 kernel's leaf tests, and a batch's
+    KDRT_KERNEL_AVX512 = 2, /* x86-64 with AVX-512: the AVX2 kernel's leaf tests, and a batch's
                                rays walked in packets of 16 */
+    KDRT_KERNEL_NEON = 3,   /* aarch64 (NEON): a leaf's triangles tested 4 at a time, a batch's
+                               rays walked one by one */
+    KDRT_KERNEL_SIMD128 = 4 /* WebAssembly built with SIMD128 (emcc -msimd128): as NEON */
 } kdrt_kernel;
 
 /* Start from kdrt_default_build_options(). A zero field means its default, except
@@ -981,7 +984,13 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
    implementation, whatever the command line says, and restored after it. Clang alone ignores
    these pragmas under an explicit -ffp-contract=fast: do not give it that for this file. */
 #if defined(__clang__)
+/* Clang 14 supports float_control only where the target has strict FP (x86, not aarch64 or
+   wasm): elsewhere its push and pop are ignored, quietly, and contract(off) holds to the end of
+   the file. */
+#pragma clang diagnostic push
+#pragma clang diagnostic ignored "-Wignored-pragmas"
 #pragma float_control(push)
+#pragma clang diagnostic pop
 #pragma clang fp contract(off)
 #elif defined(__GNUC__)
 #pragma GCC push_options
@@ -1111,6 +1120,9 @@ typedef char kdrt__block_is_5_cache_lines[sizeof(kdrt__block) == 320 ? 1 : -1];
 
 static int kdrt__cpu_has_avx2(void); /* 1 where the AVX2 kernel is compiled in and can run */
 static int kdrt__cpu_has_avx512(void); /* the same for the AVX-512 kernel */
+/* KDRT_KERNEL_NEON or KDRT_KERNEL_SIMD128 where the 4-wide kernel is compiled in (no CPU check:
+   the target has it), else KDRT_KERNEL_SCALAR. */
+static kdrt_kernel kdrt__kernel_x4(void);
 
 /* A leaf as the rope walk sees it (START CELLS): its box, the tree's bounds cut by its ancestors'
    splits, and its ropes, [2 * axis + side] the node across the face at lo[axis] (side 0) or
@@ -1141,7 +1153,7 @@ struct kdrt_tree {
     kdrt__part one;      /* kdrt_tree_build()'s mesh */
     int masks_full;      /* every part's mask has every bit: a ray's mask needs no test */
     int watertight;      /* options.intersector: 1 watertight, 0 fast (Moeller-Trumbore) */
-    int simd;            /* the kernel: 0 scalar, 1 AVX2, 2 AVX-512 (kdrt_kernel's values) */
+    int simd; /* the kernel: 0 scalar, 1 AVX2, 2 AVX-512, 3 NEON, 4 SIMD128 (kdrt_kernel's) */
     kdrt_allocator allocator;
     kdrt_aabb bounds;
     kdrt__node *nodes;
@@ -2972,7 +2984,11 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt__mesh
     tree->masks_full = 1;
     for (i = 0; m && i < m->count; ++i) tree->masks_full &= m->parts[i].mask == 0xFFFFFFFFu;
     tree->watertight = opt->intersector != KDRT_INTERSECTOR_FAST;
-    if ((opt->flags & KDRT_BUILD_SCALAR_KERNEL) || !kdrt__cpu_has_avx2())
+    if (opt->flags & KDRT_BUILD_SCALAR_KERNEL)
+        tree->simd = KDRT_KERNEL_SCALAR;
+    else if (kdrt__kernel_x4() != KDRT_KERNEL_SCALAR)
+        tree->simd = (int)kdrt__kernel_x4();
+    else if (!kdrt__cpu_has_avx2())
         tree->simd = KDRT_KERNEL_SCALAR;
     else if (!(opt->flags & KDRT_BUILD_AVX2_KERNEL) && kdrt__cpu_has_avx512())
         tree->simd = KDRT_KERNEL_AVX512;
@@ -3791,6 +3807,277 @@ static int kdrt__cpu_has_avx2(void) { return 0; }
 static int kdrt__cpu_has_avx512(void) { return 0; }
 #endif
 
+/* ==== the 4-wide kernel: NEON and WebAssembly SIMD128, a block as two halves of 4 ==== */
+
+/* On aarch64, where NEON is part of the architecture (so it is chosen at compile time, with no CPU
+   check), and on WebAssembly compiled with SIMD128 (emcc -msimd128). Its block tests are the
+   scalar tests' arithmetic, operation for operation, on 4 lanes at a time: a block's 8 lanes as
+   two halves, the watertight test's doubles 2 at a time. They are written once over the
+   kdrt__x4 operations below, which each instruction set defines. No multiply is fused with the
+   add that reads it, whatever -ffp-contract says: on NEON each product passes through an empty
+   asm statement, which hides where the value came from (GCC and Clang would otherwise fuse
+   vmulq and vaddq into fmla), and SIMD128 has no fused multiply-add. Batches walk their rays one
+   at a time on this kernel (kdrt__batch). Never beside the AVX2 kernel: one architecture each. */
+#if !defined(KDRT_NO_SIMD) && !defined(KDRT__AVX2) && (defined(__GNUC__) || defined(__clang__)) && \
+    (defined(__aarch64__) || defined(__wasm_simd128__))
+#define KDRT__X4 1
+
+#if defined(__aarch64__)
+#include <arm_neon.h>
+#define KDRT__X4_KERNEL KDRT_KERNEL_NEON
+typedef float32x4_t kdrt__x4;  /* 4 floats */
+typedef uint32x4_t kdrt__x4m;  /* 4 lanes' truth: all bits set or clear */
+typedef float64x2_t kdrt__x2d; /* 2 doubles */
+typedef uint64x2_t kdrt__x2dm; /* 2 lanes' truth */
+static KDRT__FORCEINLINE float32x4_t kdrt__x4_mul(float32x4_t a, float32x4_t b)
+{
+    float32x4_t product = vmulq_f32(a, b);
+    __asm__("" : "+w"(product)); /* not fused into the add that reads it (see above) */
+    return product;
+}
+static KDRT__FORCEINLINE float64x2_t kdrt__x2d_mul(float64x2_t a, float64x2_t b)
+{
+    float64x2_t product = vmulq_f64(a, b);
+    __asm__("" : "+w"(product));
+    return product;
+}
+static KDRT__FORCEINLINE unsigned kdrt__x4m_bits(uint32x4_t m)
+{
+    const uint32_t bit[4] = {1u, 2u, 4u, 8u};
+    return vaddvq_u32(vandq_u32(m, vld1q_u32(bit)));
+}
+static KDRT__FORCEINLINE unsigned kdrt__x2dm_bits(uint64x2_t m)
+{
+    const uint64_t bit[2] = {1u, 2u};
+    return (unsigned)vaddvq_u64(vandq_u64(m, vld1q_u64(bit)));
+}
+#define kdrt__x4_load(p) vld1q_f32(p)
+#define kdrt__x4_store(p, x) vst1q_f32(p, x)
+#define kdrt__x4_set1(x) vdupq_n_f32(x)
+#define kdrt__x4_add(a, b) vaddq_f32(a, b)
+#define kdrt__x4_sub(a, b) vsubq_f32(a, b)
+#define kdrt__x4_div(a, b) vdivq_f32(a, b)
+#define kdrt__x4_lt(a, b) vcltq_f32(a, b)
+#define kdrt__x4_gt(a, b) vcgtq_f32(a, b)
+#define kdrt__x4_le(a, b) vcleq_f32(a, b)
+#define kdrt__x4_ge(a, b) vcgeq_f32(a, b)
+#define kdrt__x4_ne(a, b) vmvnq_u32(vceqq_f32(a, b)) /* true for NaN, as C's != */
+#define kdrt__x4m_and(a, b) vandq_u32(a, b)
+#define kdrt__x4m_or(a, b) vorrq_u32(a, b)
+#define kdrt__x2d_set1(x) vdupq_n_f64(x)
+#define kdrt__x2d_add(a, b) vaddq_f64(a, b)
+#define kdrt__x2d_sub(a, b) vsubq_f64(a, b)
+#define kdrt__x2d_div(a, b) vdivq_f64(a, b)
+#define kdrt__x2d_lt(a, b) vcltq_f64(a, b)
+#define kdrt__x2d_gt(a, b) vcgtq_f64(a, b)
+#define kdrt__x2d_ne(a, b) vreinterpretq_u64_u32(vmvnq_u32(vreinterpretq_u32_u64(vceqq_f64(a, b))))
+#define kdrt__x2dm_and(a, b) vandq_u64(a, b)
+#define kdrt__x2dm_or(a, b) vorrq_u64(a, b)
+#define kdrt__x2dm_andnot(a, b) vbicq_u64(b, a) /* b and not a */
+#define kdrt__x2d_widen(x, half) /* the floats of half 0 or 1 of x, exact */                      \
+    ((half) ? vcvt_high_f64_f32(x) : vcvt_f64_f32(vget_low_f32(x)))
+#define kdrt__x4_narrow(lo, hi) vcvt_high_f32_f64(vcvt_f32_f64(lo), hi) /* each rounded once */
+
+#else /* __wasm_simd128__ */
+#include <wasm_simd128.h>
+#define KDRT__X4_KERNEL KDRT_KERNEL_SIMD128
+typedef v128_t kdrt__x4;
+typedef v128_t kdrt__x4m;
+typedef v128_t kdrt__x2d;
+typedef v128_t kdrt__x2dm;
+#define kdrt__x4_mul(a, b) wasm_f32x4_mul(a, b)
+#define kdrt__x2d_mul(a, b) wasm_f64x2_mul(a, b)
+#define kdrt__x4m_bits(m) ((unsigned)wasm_i32x4_bitmask(m))
+#define kdrt__x2dm_bits(m) ((unsigned)wasm_i64x2_bitmask(m))
+#define kdrt__x4_load(p) wasm_v128_load(p)
+#define kdrt__x4_store(p, x) wasm_v128_store(p, x)
+#define kdrt__x4_set1(x) wasm_f32x4_splat(x)
+#define kdrt__x4_add(a, b) wasm_f32x4_add(a, b)
+#define kdrt__x4_sub(a, b) wasm_f32x4_sub(a, b)
+#define kdrt__x4_div(a, b) wasm_f32x4_div(a, b)
+#define kdrt__x4_lt(a, b) wasm_f32x4_lt(a, b)
+#define kdrt__x4_gt(a, b) wasm_f32x4_gt(a, b)
+#define kdrt__x4_le(a, b) wasm_f32x4_le(a, b)
+#define kdrt__x4_ge(a, b) wasm_f32x4_ge(a, b)
+#define kdrt__x4_ne(a, b) wasm_f32x4_ne(a, b) /* true for NaN, as C's != */
+#define kdrt__x4m_and(a, b) wasm_v128_and(a, b)
+#define kdrt__x4m_or(a, b) wasm_v128_or(a, b)
+#define kdrt__x2d_set1(x) wasm_f64x2_splat(x)
+#define kdrt__x2d_add(a, b) wasm_f64x2_add(a, b)
+#define kdrt__x2d_sub(a, b) wasm_f64x2_sub(a, b)
+#define kdrt__x2d_div(a, b) wasm_f64x2_div(a, b)
+#define kdrt__x2d_lt(a, b) wasm_f64x2_lt(a, b)
+#define kdrt__x2d_gt(a, b) wasm_f64x2_gt(a, b)
+#define kdrt__x2d_ne(a, b) wasm_f64x2_ne(a, b)
+#define kdrt__x2dm_and(a, b) wasm_v128_and(a, b)
+#define kdrt__x2dm_or(a, b) wasm_v128_or(a, b)
+#define kdrt__x2dm_andnot(a, b) wasm_v128_andnot(b, a) /* b and not a */
+#define kdrt__x2d_widen(x, half)                                                                  \
+    wasm_f64x2_promote_low_f32x4((half) ? wasm_i32x4_shuffle(x, x, 2, 3, 2, 3) : (x))
+#define kdrt__x4_narrow(lo, hi)                                                                   \
+    wasm_i64x2_shuffle(wasm_f32x4_demote_f64x2_zero(lo), wasm_f32x4_demote_f64x2_zero(hi), 0, 2)
+#endif
+
+static kdrt_kernel kdrt__kernel_x4(void) { return KDRT__X4_KERNEL; }
+
+/* What a block test found, and its lanes offered to kdrt__accept: the AVX2 kernel's
+   kdrt__candidates and kdrt__accept_lanes (see there), which that section compiles for itself. */
+#define KDRT__PACKET_MAX 16u
+typedef struct kdrt__candidates {
+    float t[KDRT__PACKET_MAX], u[KDRT__PACKET_MAX], v[KDRT__PACKET_MAX];
+    unsigned front;
+} kdrt__candidates;
+
+static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
+                              const kdrt__candidates *c, const kdrt__ray_setup *s, int ruled)
+{
+    int found = 0;
+    for (; mask; mask &= mask - 1u) {
+        const unsigned lane = (unsigned)__builtin_ctz(mask), id = block->id[lane];
+        found |= ruled
+                     ? kdrt__accept_ruled(best, id, c->t[lane], c->u[lane], c->v[lane],
+                                          (int)((c->front >> lane) & 1u), s)
+                     : kdrt__accept(best, id, c->t[lane], c->u[lane], c->v[lane], s);
+    }
+    return found;
+}
+
+/* kdrt__intersect_watertight on the block's lanes first .. first + 3 (first 0 or 4): the lanes
+   it finds as bits 0 to 3, their t, u, v in c from lane first on, their front faces added to
+   c->front. */
+static KDRT__FORCEINLINE unsigned kdrt__watertight_x4(const kdrt__block *block, unsigned first,
+                                                      const kdrt__ray_setup *s,
+                                                      kdrt__candidates *c)
+{
+    const int kx = s->kx, ky = s->ky, kz = s->kz;
+    const kdrt__x4 ox = kdrt__x4_set1(s->org[kx]), oy = kdrt__x4_set1(s->org[ky]);
+    const kdrt__x4 oz = kdrt__x4_set1(s->org[kz]);
+    const kdrt__x4 sx = kdrt__x4_set1(s->shear_x), sy = kdrt__x4_set1(s->shear_y);
+    const kdrt__x4 sz = kdrt__x4_set1(s->shear_z);
+    const kdrt__x2d zero = kdrt__x2d_set1(0.0);
+    kdrt__x4 x[3], y[3], z[3];
+    kdrt__x4m neg, pos, lt, gt;
+    kdrt__x2d e0[2], e1[2], e2[2], det[2], t[2], u[2], v[2];
+    unsigned mask = 0, h;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const kdrt__x4 dx = kdrt__x4_sub(kdrt__x4_load(block->corner[3 * k + kx] + first), ox);
+        const kdrt__x4 dy = kdrt__x4_sub(kdrt__x4_load(block->corner[3 * k + ky] + first), oy);
+        const kdrt__x4 dz = kdrt__x4_sub(kdrt__x4_load(block->corner[3 * k + kz] + first), oz);
+        x[k] = kdrt__x4_sub(dx, kdrt__x4_mul(sx, dz));
+        y[k] = kdrt__x4_sub(dy, kdrt__x4_mul(sy, dz));
+        z[k] = kdrt__x4_mul(sz, dz);
+    }
+    /* The AVX2 kernel's filter (kdrt__surely_missed): float products that already order an edge
+       function's two terms prove its sign; lanes with edge functions of both signs are missed. */
+    for (k = 0; k < 3; ++k) {
+        const int i = (k + 2) % 3, j = (k + 1) % 3; /* edge j-i, weight of corner k */
+        const kdrt__x4 a = kdrt__x4_mul(x[i], y[j]), b = kdrt__x4_mul(y[i], x[j]);
+        lt = kdrt__x4_lt(a, b), gt = kdrt__x4_gt(a, b);
+        neg = k ? kdrt__x4m_or(neg, lt) : lt;
+        pos = k ? kdrt__x4m_or(pos, gt) : gt;
+    }
+    if (kdrt__x4m_bits(kdrt__x4m_and(neg, pos)) == 0xFu) return 0;
+    /* The exact edge functions, in double, two lanes at a time. */
+    for (h = 0; h < 2u; ++h) {
+        kdrt__x2d xd[3], yd[3];
+        kdrt__x2dm negd, posd;
+        for (k = 0; k < 3; ++k) xd[k] = kdrt__x2d_widen(x[k], h), yd[k] = kdrt__x2d_widen(y[k], h);
+        e0[h] = kdrt__x2d_sub(kdrt__x2d_mul(xd[2], yd[1]), kdrt__x2d_mul(yd[2], xd[1]));
+        e1[h] = kdrt__x2d_sub(kdrt__x2d_mul(xd[0], yd[2]), kdrt__x2d_mul(yd[0], xd[2]));
+        e2[h] = kdrt__x2d_sub(kdrt__x2d_mul(xd[1], yd[0]), kdrt__x2d_mul(yd[1], xd[0]));
+        negd = kdrt__x2dm_or(kdrt__x2dm_or(kdrt__x2d_lt(e0[h], zero), kdrt__x2d_lt(e1[h], zero)),
+                             kdrt__x2d_lt(e2[h], zero));
+        posd = kdrt__x2dm_or(kdrt__x2dm_or(kdrt__x2d_gt(e0[h], zero), kdrt__x2d_gt(e1[h], zero)),
+                             kdrt__x2d_gt(e2[h], zero));
+        det[h] = kdrt__x2d_add(kdrt__x2d_add(e0[h], e1[h]), e2[h]);
+        /* not (negative and positive), and det != 0 (NaN goes on, as in C) */
+        mask |= kdrt__x2dm_bits(kdrt__x2dm_andnot(kdrt__x2dm_and(negd, posd),
+                                                  kdrt__x2d_ne(det[h], zero)))
+                << (2u * h);
+    }
+    if (!mask) return 0; /* most blocks: no lane's triangle contains the ray */
+    for (h = 0; h < 2u; ++h) {
+        const kdrt__x2d inv_det = kdrt__x2d_div(kdrt__x2d_set1(1.0), det[h]);
+        const kdrt__x2d num = kdrt__x2d_add(
+            kdrt__x2d_add(kdrt__x2d_mul(e0[h], kdrt__x2d_widen(z[0], h)),
+                          kdrt__x2d_mul(e1[h], kdrt__x2d_widen(z[1], h))),
+            kdrt__x2d_mul(e2[h], kdrt__x2d_widen(z[2], h)));
+        c->front |= kdrt__x2dm_bits(kdrt__x2d_gt(det[h], zero)) << (first + 2u * h);
+        t[h] = kdrt__x2d_mul(num, inv_det);
+        u[h] = kdrt__x2d_mul(e1[h], inv_det), v[h] = kdrt__x2d_mul(e2[h], inv_det);
+    }
+    kdrt__x4_store(c->t + first, kdrt__x4_narrow(t[0], t[1]));
+    kdrt__x4_store(c->u + first, kdrt__x4_narrow(u[0], u[1]));
+    kdrt__x4_store(c->v + first, kdrt__x4_narrow(v[0], v[1]));
+    return mask;
+}
+
+/* kdrt__intersect_watertight on a block's 8 lanes: what kdrt__block_watertight_avx2 finds. */
+static unsigned kdrt__block_watertight_x4(const kdrt__block *block, const kdrt__ray_setup *s,
+                                          kdrt__candidates *c)
+{
+    c->front = 0;
+    return kdrt__watertight_x4(block, 0, s, c) | kdrt__watertight_x4(block, 4, s, c) << 4;
+}
+
+/* kdrt__intersect_fast on the block's lanes first .. first + 3, found as kdrt__watertight_x4
+   finds. */
+static KDRT__FORCEINLINE unsigned kdrt__fast_x4(const kdrt__block *block, unsigned first,
+                                                const kdrt__ray_setup *s, kdrt__candidates *c)
+{
+    const kdrt__x4 zero = kdrt__x4_set1(0.0f), one = kdrt__x4_set1(1.0f);
+    kdrt__x4 p0[3], e1[3], e2[3], tv[3], d[3], pv[3], qv[3], det, inv_det, u, v, t;
+    kdrt__x4m keep;
+    unsigned mask;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        p0[a] = kdrt__x4_load(block->corner[a] + first);
+        e1[a] = kdrt__x4_sub(kdrt__x4_load(block->corner[3 + a] + first), p0[a]);
+        e2[a] = kdrt__x4_sub(kdrt__x4_load(block->corner[6 + a] + first), p0[a]);
+        tv[a] = kdrt__x4_sub(kdrt__x4_set1(s->org[a]), p0[a]);
+        d[a] = kdrt__x4_set1(s->dir[a]);
+    }
+    /* kdrt__cross_float and the scalar test's dot products, in their order */
+#define KDRT__CROSS(a, b, c)                                                                      \
+    (c[0] = kdrt__x4_sub(kdrt__x4_mul(a[1], b[2]), kdrt__x4_mul(a[2], b[1])),                     \
+     c[1] = kdrt__x4_sub(kdrt__x4_mul(a[2], b[0]), kdrt__x4_mul(a[0], b[2])),                     \
+     c[2] = kdrt__x4_sub(kdrt__x4_mul(a[0], b[1]), kdrt__x4_mul(a[1], b[0])))
+#define KDRT__DOT(a, b)                                                                           \
+    kdrt__x4_add(kdrt__x4_add(kdrt__x4_mul(a[0], b[0]), kdrt__x4_mul(a[1], b[1])),                \
+                 kdrt__x4_mul(a[2], b[2]))
+    KDRT__CROSS(d, e2, pv);
+    det = KDRT__DOT(e1, pv);
+    inv_det = kdrt__x4_div(one, det);
+    u = kdrt__x4_mul(KDRT__DOT(tv, pv), inv_det);
+    KDRT__CROSS(tv, e1, qv);
+    v = kdrt__x4_mul(KDRT__DOT(d, qv), inv_det);
+    t = kdrt__x4_mul(KDRT__DOT(e2, qv), inv_det);
+#undef KDRT__CROSS
+#undef KDRT__DOT
+    keep = kdrt__x4m_and(kdrt__x4_ne(det, zero),
+                         kdrt__x4m_and(kdrt__x4_ge(u, zero), kdrt__x4_le(u, one)));
+    keep = kdrt__x4m_and(keep, kdrt__x4m_and(kdrt__x4_ge(v, zero),
+                                             kdrt__x4_le(kdrt__x4_add(u, v), one)));
+    mask = kdrt__x4m_bits(keep);
+    if (!mask) return 0;
+    kdrt__x4_store(c->t + first, t), kdrt__x4_store(c->u + first, u);
+    kdrt__x4_store(c->v + first, v);
+    c->front |= kdrt__x4m_bits(kdrt__x4_gt(det, zero)) << first;
+    return mask;
+}
+
+/* kdrt__intersect_fast on a block's 8 lanes: what kdrt__block_fast_avx2 finds. */
+static unsigned kdrt__block_fast_x4(const kdrt__block *block, const kdrt__ray_setup *s,
+                                    kdrt__candidates *c)
+{
+    c->front = 0;
+    return kdrt__fast_x4(block, 0, s, c) | kdrt__fast_x4(block, 4, s, c) << 4;
+}
+#else
+static kdrt_kernel kdrt__kernel_x4(void) { return KDRT_KERNEL_SCALAR; }
+#endif
+
 /* ==== traversal ==== */
 
 #define KDRT__MAILBOX 32u /* entries; a power of two, as the traversal masks by it */
@@ -3920,13 +4207,18 @@ static KDRT__FORCEINLINE int kdrt__test_leaf(const kdrt_tree *tree, const kdrt__
     uint32_t i, first = n->u.first, count = kdrt__node_count(n);
     KDRT__COUNT(stats, leaves, 1);
     KDRT__COUNT(stats, empty_leaves, count == 0);
-#ifdef KDRT__AVX2
+#if defined(KDRT__AVX2) || defined(KDRT__X4)
     if (tree->simd) {
         for (i = 0; i < count; i += KDRT__LANES) {
             const kdrt__block *block = &tree->blocks[first + i / KDRT__LANES];
             kdrt__candidates candidates;
+#if defined(KDRT__AVX2)
             const unsigned mask = tree->watertight ? kdrt__block_watertight_avx2(block, s, &candidates)
                                                    : kdrt__block_fast_avx2(block, s, &candidates);
+#else
+            const unsigned mask = tree->watertight ? kdrt__block_watertight_x4(block, s, &candidates)
+                                                   : kdrt__block_fast_x4(block, s, &candidates);
+#endif
             const int found = mask && kdrt__accept_lanes(best, block, mask, &candidates, s, ruled);
             KDRT__COUNT(stats, block_tests, 1);
             KDRT__COUNT(stats, triangle_tests, count - i < KDRT__LANES ? count - i : KDRT__LANES);
@@ -5566,7 +5858,10 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 }
 #endif
 #if defined(__clang__)
+#pragma clang diagnostic push
+#pragma clang diagnostic ignored "-Wignored-pragmas"
 #pragma float_control(pop)
+#pragma clang diagnostic pop
 #elif defined(__GNUC__)
 #pragma GCC pop_options
 #endif

@@ -1,12 +1,14 @@
 // The kernels (KERNELS in kdrt.h): a tree built as usual runs the AVX-512 kernel where the CPU has
 // AVX-512, else the AVX2 kernel where it has AVX2 (their single-ray queries are the same code; the
-// batches' packets are compared in test_batch.cpp), one built with KDRT_BUILD_SCALAR_KERNEL the
-// scalar kernel, and the SIMD and scalar kernels must return the
+// batches' packets are compared in test_batch.cpp), the NEON kernel on aarch64 and the SIMD128
+// kernel on WebAssembly built with -msimd128 (tests/platforms run them under qemu and node), one
+// built with KDRT_BUILD_SCALAR_KERNEL the scalar kernel, and the SIMD and scalar kernels must
+// return the
 // same answers bit for bit (hit or miss, t, u, v, triangle; kdrt_occluded too) on every ray:
 // random ones, the hard placements (in-plane, on-plane, axis-parallel, +-0 directions, grazing),
 // rays at the vertices and edges of closed meshes, rays passing a hair inside or outside a
-// triangle's edge (where the AVX2 kernel's float filter must not decide wrongly), and rays with
-// NaN or infinite parts. The KDRT_NO_SIMD build (kdrt_scalar_tests) has no AVX2 kernel to
+// triangle's edge (where the SIMD kernels' float filter must not decide wrongly), and rays with
+// NaN or infinite parts. The KDRT_NO_SIMD build (kdrt_scalar_tests) has no SIMD kernel to
 // compare: there this file checks only that every tree gets the scalar kernel, and the
 // comparison is not registered at all, so that it is never reported as skipped for that.
 #include "test_support.hpp"
@@ -49,7 +51,7 @@ kdrt_kernel kernel_of(uint32_t flags)
 
 
 #if !defined(KDRT_NO_SIMD)  // what compares the kernels
-// The default kernel is a SIMD one (AVX2 or AVX-512).
+// The default kernel is a SIMD one (AVX2, AVX-512, NEON or SIMD128).
 bool simd_here() { return kernel_of(0) != KDRT_KERNEL_SCALAR; }
 
 // Bit for bit: the same return value and, on a hit, the same bits of t, u, v and the same
@@ -125,7 +127,7 @@ size_t compare_kernels(const common::Mesh &mesh, const std::vector<kdrt_ray> &ra
                 kdrt_intersect(simd.get(), &r, &a), kdrt_intersect(scalar.get(), &r, &b);
                 FAIL_CHECK(differ << " of " << rays.size() << " rays differ; the first, ray " << first << " ("
                                   << r.org[0] << ", " << r.org[1] << ", " << r.org[2] << ") dir (" << r.dir[0] << ", "
-                                  << r.dir[1] << ", " << r.dir[2] << "): AVX2 triangle " << a.triangle << " t " << a.t
+                                  << r.dir[1] << ", " << r.dir[2] << "): SIMD triangle " << a.triangle << " t " << a.t
                                   << ", scalar triangle " << b.triangle << " t " << b.t);
             }
             compared += rays.size();
@@ -201,14 +203,25 @@ TEST_CASE("kernels: KDRT_BUILD_SCALAR_KERNEL picks the scalar kernel, KDRT_BUILD
     CHECK(kernel_of(0) == (avx512 ? KDRT_KERNEL_AVX512 : avx2 ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR));
     CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL) == (avx2 ? KDRT_KERNEL_AVX2 : KDRT_KERNEL_SCALAR));
     CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL | KDRT_BUILD_SCALAR_KERNEL) == KDRT_KERNEL_SCALAR);
+#elif defined(__aarch64__) || defined(__wasm_simd128__)
+    // NEON is part of aarch64, SIMD128 of a -msimd128 build: chosen with no CPU check;
+    // KDRT_BUILD_AVX2_KERNEL asks for nothing narrower there.
+#if defined(__aarch64__)
+    const kdrt_kernel simd = KDRT_KERNEL_NEON;
+#else
+    const kdrt_kernel simd = KDRT_KERNEL_SIMD128;
+#endif
+    CHECK(kernel_of(0) == simd);
+    CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL) == simd);
+    CHECK(kernel_of(KDRT_BUILD_AVX2_KERNEL | KDRT_BUILD_SCALAR_KERNEL) == KDRT_KERNEL_SCALAR);
 #endif
 }
 
 #if !defined(KDRT_NO_SIMD)
-TEST_CASE("kernels: the AVX2 and scalar kernels answer every ray bit for bit alike", "[kernels]")
+TEST_CASE("kernels: the SIMD and scalar kernels answer every ray bit for bit alike", "[kernels]")
 {
     if (!simd_here()) {
-        kt::skip_test("this CPU has no AVX2: only the scalar kernel runs here");
+        kt::skip_test("no SIMD kernel here (a CPU without AVX2, or a target without one): only the scalar kernel runs");
         return;
     }
     // About 1.4 million rays at the default ray count (100,000), each traced by both kernels, on

@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# The header on aarch64, where its NEON kernel runs: the core Catch2 suites (kdrt_tests, whose
+# trees run the NEON kernel, and kdrt_scalar_tests, built with KDRT_NO_SIMD), the smoke tests and,
+# where it exists, the stored answers' checker (tests/platforms/answers.c) with the NEON and the
+# scalar kernel, cross-compiled (tests/platforms/aarch64-toolchain.cmake) and run under qemu-user.
+#   bash tests/platforms/aarch64.sh [BUILD_DIR]      (default build-aarch64)
+# Also compiles the implementation at -O0 and -O2 with the strict warnings as C99 and C++11, and
+# checks that its kernels hold no fused multiply-add (fmla, fmls, fmadd, ...) under
+# -ffp-contract=off and =fast, with GCC and with Clang. Under qemu only the tests whose answers
+# depend on the kernel run, on fewer random rays (KDRT_TEST_RAYS) than the native build, so that
+# the whole script takes under 4 minutes on 2 cores. Needs: cmake, ninja, qemu-user, Catch2 2 (header-only) and aarch64-linux-gnu-g++ or
+# clang (KDRT_AARCH64_COMPILER=gcc|clang picks one).
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/../.."
+build=${1:-build-aarch64}
+qemu=(qemu-aarch64 -L /usr/aarch64-linux-gnu)
+start=$SECONDS
+step() { printf '=== %s (at %ds)\n' "$*" "$((SECONDS - start))"; }
+
+step "configure and build the core suites for aarch64"
+# The implementation (C) at -O2, where the kernels are; the suites (C++) at -O1, which builds in
+# far less time than -O3 and runs them about as fast under qemu.
+cmake -S . -B "$build" -G Ninja -DCMAKE_TOOLCHAIN_FILE=tests/platforms/aarch64-toolchain.cmake \
+  -DKDRT_CORE_TESTS_ONLY=ON -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG" -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" >/dev/null
+cmake --build "$build" -j2
+
+step "the implementation's object code: strict warnings, no fused multiply-adds in the kernels"
+objects="$build/platform-checks"
+mkdir -p "$objects"
+printf '#define KDRT_IMPLEMENTATION\n#include "kdrt.h"\n' >"$objects/implementation.c"
+strict=(-Wall -Wextra -pedantic -Werror -Wconversion -Wsign-conversion -Wshadow -Iinclude)
+compilers=()
+command -v aarch64-linux-gnu-gcc >/dev/null && compilers+=(gcc)
+command -v clang >/dev/null && [[ -d /usr/aarch64-linux-gnu/include ]] && compilers+=(clang)
+# The C compiler of the CMake build, for the programs built here.
+compiler_c=(aarch64-linux-gnu-gcc)
+[[ ${compilers[0]} == gcc ]] || compiler_c=(clang --target=aarch64-linux-gnu)
+for cc in "${compilers[@]}"; do
+  if [[ $cc == gcc ]]; then c=(aarch64-linux-gnu-gcc) cxx=(aarch64-linux-gnu-g++)
+  else c=(clang --target=aarch64-linux-gnu) cxx=(clang++ --target=aarch64-linux-gnu); fi
+  "${c[@]}" -std=c99 -O0 "${strict[@]}" -c "$objects/implementation.c" -o "$objects/$cc-O0.o"
+  "${cxx[@]}" -std=c++11 -x c++ -O0 "${strict[@]}" -c "$objects/implementation.c" -o "$objects/$cc-O0-cpp.o"
+  for contract in off fast; do
+    object="$objects/$cc-O2-$contract.o"
+    "${c[@]}" -std=c99 -O2 -ffp-contract=$contract "${strict[@]}" -c "$objects/implementation.c" -o "$object"
+    # The kernel is inlined into the walks (Clang) or stays in kdrt__block_*_x4 (GCC): no vector
+    # fused multiply-add anywhere, and none in the block tests. The scalar kernel's own fusing
+    # under -ffp-contract=fast is the compiler's, which KERNELS allows for.
+    fused=$(aarch64-linux-gnu-objdump -d --no-show-raw-insn "$object" | awk '
+      /^[0-9a-f]+ <.*>:$/ { fn = $2 }
+      /\t(fmla|fmls|fmadd|fmsub|fnmadd|fnmsub|fnmla|fnmls)\t/ {
+        if ($0 ~ /v[0-9]+\./ || fn ~ /_x4/) print fn, $0 }' | grep -v -E '<kdrt__(build_tree|split_refs|surface)>' || true)
+    kernels=$(aarch64-linux-gnu-objdump -d --no-show-raw-insn "$object" | grep -c -E 'fmul\s+v[0-9]+\.(4s|2d)' || true)
+    if [[ -n $fused ]]; then
+      echo "aarch64.sh: $cc -ffp-contract=$contract fused the kernel's multiplies:" >&2
+      echo "$fused" >&2
+      exit 1
+    fi
+    if [[ $kernels -eq 0 ]]; then
+      echo "aarch64.sh: $cc -ffp-contract=$contract: no NEON multiplies found, so no NEON kernel compiled" >&2
+      exit 1
+    fi
+    echo "$cc -ffp-contract=$contract: $kernels NEON multiplies, none fused"
+  done
+done
+
+step "the core suites' kernel and answer tests and the smoke tests under qemu"
+# All of the core suites take about half an hour under qemu on 2 cores, so this runs the tests
+# whose answers depend on the kernel: the NEON kernel against the scalar one bit for bit, the
+# reference suites, the watertight and hard sets against the oracle, queries (culled faces come
+# from the kernel's determinant), k nearest, start cells and batches against single rays (one ray
+# at a time on this kernel), at 4,000 random rays a scene (below that the batch test's camera
+# traces fewer rays than it requires); and the scalar suite's kernel test and reference suites at
+# 2,000. Left out: the builder's tests (allocation failures, the parallel build, hostile and far
+# geometry, errors, inspection, scenes) and the batches' allocation count, which do not depend on
+# the kernel; the native build runs them all.
+kernel_tests='^(kernels: |random triangle soups|height field grids|spheres agree|watertight: |hard sets: |query: |k nearest: every hit of small|cells: a ray started|batch: (coherent|packets|every|culled|scenes|NULL|several)|smoke_|stored_answers)'
+scalar_tests='^scalar: ?(kernels: |random triangle soups|height field grids|spheres agree)'
+KDRT_TEST_RAYS=4000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$kernel_tests"
+KDRT_TEST_RAYS=2000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$scalar_tests"
+
+if [[ -f tests/platforms/answers.c ]]; then
+  step "the stored answers (tests/platforms/answers.txt), NEON and scalar kernels"
+  # answers.c checks the file with every kernel the build has: here the default (NEON) and
+  # KDRT_BUILD_SCALAR_KERNEL; the KDRT_NO_SIMD build has the scalar kernel alone.
+  "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" tests/platforms/answers.c -o "$objects/answers" -lm
+  "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" -DKDRT_NO_SIMD tests/platforms/answers.c -o "$objects/answers-no-simd" -lm
+  "${qemu[@]}" "$objects/answers" tests/platforms/answers.txt
+  "${qemu[@]}" "$objects/answers-no-simd" tests/platforms/answers.txt
+fi
+step "done"
