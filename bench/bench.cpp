@@ -123,6 +123,8 @@ const char *kernel_name(kdrt_kernel kernel) {
     switch (kernel) {
     case KDRT_KERNEL_AVX2: return "avx2";
     case KDRT_KERNEL_AVX512: return "avx512";
+    case KDRT_KERNEL_NEON: return "neon";
+    case KDRT_KERNEL_SIMD128: return "simd128";
     default: return "scalar";
     }
 }

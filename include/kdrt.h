@@ -3611,6 +3611,65 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
 #define KDRT__FORCEINLINE
 #endif
 
+/* ==== the SIMD kernels: which one this build compiles, and what they share ==== */
+
+/* One at most, by the target: the AVX2 kernel (and the AVX-512 one) on x86-64 with GCC, Clang,
+   clang-cl or MSVC (not ARM64EC, which emulates x64 code), the 4-wide kernel on aarch64 and on
+   WebAssembly with SIMD128; none under KDRT_NO_SIMD (KERNELS, PLATFORMS). */
+#if !defined(KDRT_NO_SIMD) &&                                                                      \
+    ((defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))) ||                        \
+     (defined(_MSC_VER) && defined(_M_X64) && !defined(_M_ARM64EC)))
+#define KDRT__AVX2 1
+#elif !defined(KDRT_NO_SIMD) && (defined(__GNUC__) || defined(__clang__)) &&                       \
+    (defined(__aarch64__) || defined(__wasm_simd128__))
+#define KDRT__X4 1
+#endif
+
+#if defined(KDRT__AVX2) || defined(KDRT__X4)
+#if defined(_MSC_VER)
+#include <intrin.h> /* _BitScanForward */
+/* The lowest set bit of bits (not 0). */
+static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits)
+{
+    unsigned long index;
+    _BitScanForward(&index, bits);
+    return (unsigned)index;
+}
+#else
+/* The lowest set bit of bits (not 0). */
+static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits) { return (unsigned)__builtin_ctz(bits); }
+#endif
+
+/* What a block test found: the lanes whose triangles the ray meets (its return value, a bit a
+   lane), their t, u, v, and front, a bit a lane set where the ray meets the front face. The block
+   tests only find; the traversal decides (kdrt__accept_lanes), so that the tests, which most
+   blocks leave early, make no calls and save no registers. A lane is a block's triangle, or a
+   packet's ray (up to KDRT__PACKET_MAX of them). */
+#define KDRT__PACKET_MAX 16u
+typedef struct kdrt__candidates {
+    float t[KDRT__PACKET_MAX], u[KDRT__PACKET_MAX], v[KDRT__PACKET_MAX];
+    unsigned front;
+} kdrt__candidates;
+
+/* The lanes of mask offered to kdrt__accept in turn: the order does not matter, as kdrt__accept
+   keeps the lowest (t, triangle) whatever the order it is offered them. ruled: s has a query's
+   rules or a list (kdrt__accept_ruled). */
+static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
+                              const kdrt__candidates *c, const kdrt__ray_setup *s, int ruled)
+{
+    int found = 0;
+    for (; mask; mask &= mask - 1u) {
+        const unsigned lane = kdrt__ctz(mask), id = block->id[lane];
+        found |= ruled
+                     ? kdrt__accept_ruled(best, id, c->t[lane], c->u[lane], c->v[lane],
+                                          (int)((c->front >> lane) & 1u), s)
+                     : kdrt__accept(best, id, c->t[lane], c->u[lane], c->v[lane], s);
+    }
+    return found;
+}
+
+#endif
+
 /* ==== the AVX2 kernel: 8 triangles at a time ==== */
 
 /* Compiled with the compiler's per-function target attribute (GCC, Clang, clang-cl), so no -mavx2
@@ -3619,10 +3678,7 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
    target is "avx2" alone, not FMA: without FMA instructions the compiler cannot fuse a multiply
    and an add, so each operation rounds as the scalar kernel's does and the answers are the same
    bit for bit. */
-#if !defined(KDRT_NO_SIMD) &&                                                                      \
-    ((defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))) ||                        \
-     (defined(_MSC_VER) && defined(_M_X64) && !defined(_M_ARM64EC)))
-#define KDRT__AVX2 1
+#if defined(KDRT__AVX2)
 #include <immintrin.h>
 #if defined(_MSC_VER) && !defined(__clang__)
 /* cl.exe names each function with AVX code compiled without /arch:AVX (C4752): kdrt's run
@@ -3676,14 +3732,6 @@ static int kdrt__cpu_vector_level(void)
 
 static int kdrt__cpu_has_avx2(void) { return kdrt__cpu_vector_level() >= 1; }
 static int kdrt__cpu_has_avx512(void) { return kdrt__cpu_vector_level() >= 2; }
-
-/* The lowest set bit of bits (not 0). */
-static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits)
-{
-    unsigned long index;
-    _BitScanForward(&index, bits);
-    return (unsigned)index;
-}
 #else
 static int kdrt__cpu_has_avx2(void)
 {
@@ -3696,38 +3744,7 @@ static int kdrt__cpu_has_avx512(void)
     __builtin_cpu_init(); /* also checks that the OS saves the AVX-512 registers */
     return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f");
 }
-
-/* The lowest set bit of bits (not 0). */
-static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits) { return (unsigned)__builtin_ctz(bits); }
 #endif
-
-/* What a block test found: the lanes whose triangles the ray meets (its return value, a bit a
-   lane), their t, u, v, and front, a bit a lane set where the ray meets the front face. The block
-   tests only find; the traversal decides (kdrt__accept_lanes), so that the tests, which most
-   blocks leave early, make no calls and save no registers. A lane is a block's triangle, or a
-   packet's ray (up to KDRT__PACKET_MAX of them). */
-#define KDRT__PACKET_MAX 16u
-typedef struct kdrt__candidates {
-    float t[KDRT__PACKET_MAX], u[KDRT__PACKET_MAX], v[KDRT__PACKET_MAX];
-    unsigned front;
-} kdrt__candidates;
-
-/* The lanes of mask offered to kdrt__accept in turn: the order does not matter, as kdrt__accept
-   keeps the lowest (t, triangle) whatever the order it is offered them. ruled: s has a query's
-   rules or a list (kdrt__accept_ruled). */
-static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
-                              const kdrt__candidates *c, const kdrt__ray_setup *s, int ruled)
-{
-    int found = 0;
-    for (; mask; mask &= mask - 1u) {
-        const unsigned lane = kdrt__ctz(mask), id = block->id[lane];
-        found |= ruled
-                     ? kdrt__accept_ruled(best, id, c->t[lane], c->u[lane], c->v[lane],
-                                          (int)((c->front >> lane) & 1u), s)
-                     : kdrt__accept(best, id, c->t[lane], c->u[lane], c->v[lane], s);
-    }
-    return found;
-}
 
 /* kdrt__surely_missed_avx2 and kdrt__watertight_lanes_avx2: the exact test on 8 lanes, written
    once for 8 and 16 (PACKETS, at the end of this file). */
@@ -3818,9 +3835,7 @@ static int kdrt__cpu_has_avx512(void) { return 0; }
    asm statement, which hides where the value came from (GCC and Clang would otherwise fuse
    vmulq and vaddq into fmla), and SIMD128 has no fused multiply-add. Batches walk their rays one
    at a time on this kernel (kdrt__batch). Never beside the AVX2 kernel: one architecture each. */
-#if !defined(KDRT_NO_SIMD) && !defined(KDRT__AVX2) && (defined(__GNUC__) || defined(__clang__)) && \
-    (defined(__aarch64__) || defined(__wasm_simd128__))
-#define KDRT__X4 1
+#if defined(KDRT__X4)
 
 #if defined(__aarch64__)
 #include <arm_neon.h>
@@ -3919,28 +3934,6 @@ typedef v128_t kdrt__x2dm;
 #endif
 
 static kdrt_kernel kdrt__kernel_x4(void) { return KDRT__X4_KERNEL; }
-
-/* What a block test found, and its lanes offered to kdrt__accept: the AVX2 kernel's
-   kdrt__candidates and kdrt__accept_lanes (see there), which that section compiles for itself. */
-#define KDRT__PACKET_MAX 16u
-typedef struct kdrt__candidates {
-    float t[KDRT__PACKET_MAX], u[KDRT__PACKET_MAX], v[KDRT__PACKET_MAX];
-    unsigned front;
-} kdrt__candidates;
-
-static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned mask,
-                              const kdrt__candidates *c, const kdrt__ray_setup *s, int ruled)
-{
-    int found = 0;
-    for (; mask; mask &= mask - 1u) {
-        const unsigned lane = (unsigned)__builtin_ctz(mask), id = block->id[lane];
-        found |= ruled
-                     ? kdrt__accept_ruled(best, id, c->t[lane], c->u[lane], c->v[lane],
-                                          (int)((c->front >> lane) & 1u), s)
-                     : kdrt__accept(best, id, c->t[lane], c->u[lane], c->v[lane], s);
-    }
-    return found;
-}
 
 /* kdrt__intersect_watertight on the block's lanes first .. first + 3 (first 0 or 4): the lanes
    it finds as bits 0 to 3, their t, u, v in c from lane first on, their front faces added to

@@ -264,6 +264,8 @@ static const char *kernel_name(kdrt_kernel k)
     case KDRT_KERNEL_SCALAR: return "scalar";
     case KDRT_KERNEL_AVX2: return "avx2";
     case KDRT_KERNEL_AVX512: return "avx512";
+    case KDRT_KERNEL_NEON: return "neon";
+    case KDRT_KERNEL_SIMD128: return "simd128";
     default: return "other";
     }
 }
