@@ -53,9 +53,9 @@
      These three exist to measure the choice: the defaults are the measured best, and any value
      in range builds a valid tree, if not the same one. A value out of range stops the
      compilation with an #error.
-       KDRT_NO_SIMD              leave the AVX2 and AVX-512 kernels and SSE2 binning out:
-                                 every tree runs the scalar kernel and is binned by scalar code
-                                 (KERNELS)
+       KDRT_NO_SIMD              leave the SIMD kernels (AVX2, AVX-512, NEON, SIMD128) and SSE2
+                                 binning out: every tree runs the scalar kernel and is binned
+                                 by scalar code (KERNELS)
        KDRT_HEADER_FILENAME      the name this header is included by, in quotes (default
                                  "kdrt.h"): the implementation includes itself once more for
                                  each packet width (KERNELS); set it when the file is renamed
@@ -277,27 +277,63 @@
      -fstack-usage); any number of threads may call at once.
 
    KERNELS
-     A tree's queries run one of three kernels, chosen when it is built and kept in the tree (no
-     global state): where the header was compiled for x86-64 by GCC or Clang without
-     KDRT_NO_SIMD, the AVX-512 kernel if the CPU has AVX-512 (AVX512F), else the AVX2 kernel if it
-     has AVX2 (checked by the build with __builtin_cpu_supports, which also asks whether the OS
-     saves the registers), else the scalar kernel; KDRT_BUILD_AVX2_KERNEL and
-     KDRT_BUILD_SCALAR_KERNEL ask for the narrower ones, kdrt_tree_stats.kernel says which runs.
-     The AVX-512 kernel is the AVX2 kernel with a batch's packets 16 rays wide; the packet code
-     is written once over the vector width, and the implementation includes the header again
-     (KDRT_HEADER_FILENAME) to compile it for 8 lanes and for 16. No compiler flag is needed: the
-     SIMD functions carry the per-function target attribute. All three walk the same tree and
-     read the same 8-wide leaf blocks; the AVX2 kernel tests a block's 8 triangles at once, with
-     the scalar test's operations in the same order and without FMA, so they return the same
-     answers bit for bit (the tests compare them on 1.4 million rays). Before its exact
-     watertight test, the AVX2 kernel leaves a block early when float products already prove
-     that the ray misses all 8 triangles: a filter that changes no answer. The compiler may not
-     fuse a multiply and an add into an FMA anywhere in the implementation (PLATFORMS), so
-     -march=native or GCC's GNU modes change no bit either. AVX-512 implies FMA; its packet code
-     also names the rounding of each operation, which no compiler fuses. On MSVC and off x86-64 the scalar kernel runs. The SAH
-     builder bins references with SSE2 (part of x86-64: no attribute needed), each lane rounding
-     as the scalar code does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL bins with the
-     scalar code too.
+     A tree's queries run one of five kernels, chosen when it is built and kept in the tree (no
+     global state); kdrt_tree_stats.kernel says which. On x86-64 (GCC, Clang, clang-cl, MSVC):
+     the AVX-512 kernel if the CPU has AVX512F, else the AVX2 kernel if it has AVX2, else the
+     scalar kernel, the CPU and the OS's saving of its registers asked when the tree is built
+     (PLATFORMS); KDRT_BUILD_AVX2_KERNEL and KDRT_BUILD_SCALAR_KERNEL ask for the narrower ones.
+     On aarch64 the NEON kernel, and on WebAssembly built with -msimd128 the SIMD128 kernel,
+     chosen at compile time (the target always has them); KDRT_BUILD_SCALAR_KERNEL asks for the
+     scalar one there too. Elsewhere, and under KDRT_NO_SIMD, the scalar kernel.
+     All walk the same tree and read the same 8-wide leaf blocks. The AVX2 kernel tests a block's
+     8 triangles at once, NEON and SIMD128 as two halves of 4 (the watertight test's doubles 2 at
+     a time), each with the scalar test's operations in the same order, so every kernel returns
+     the same answers bit for bit (the tests compare them on 1.4 million rays, and
+     tests/platforms/answers.txt across platforms: PLATFORMS). Before the exact watertight test,
+     the SIMD kernels leave a block early when float products already prove that the ray misses
+     its triangles: a filter that changes no answer. The AVX-512 kernel is the AVX2 kernel with a
+     batch's packets 16 rays wide; the packet code is written once over the vector width, and the
+     implementation includes the header again (KDRT_HEADER_FILENAME) to compile it for 8 lanes and
+     for 16; its operations name their rounding, which no compiler fuses. NEON and SIMD128
+     batches walk one ray at a time, with the block tests. No compiler flag is needed: the x86
+     SIMD functions carry the per-function target attribute (MSVC needs none). Measured: the
+     NEON kernel runs 2.1x (GCC 12) to 2.6x (Clang 14) fewer instructions a ray than the scalar
+     kernel on aarch64, the SIMD128 kernel 2x the scalar kernel's rays a second under node 20
+     (tests/platforms/count_instructions.sh, kernel_speed.c). The SAH builder bins references with
+     SSE2 on x86-64 (no attribute needed), each lane rounding as the scalar code does, so the tree
+     is the same; KDRT_BUILD_SCALAR_KERNEL bins with the scalar code too.
+
+   PLATFORMS
+     The file with the implementation needs no flag anywhere: no -mavx2, -march or /arch.
+       x86-64, GCC and Clang (Linux, macOS, mingw-w64): AVX-512, AVX2 or scalar, the CPU asked
+         by __builtin_cpu_supports (mingw: link libgcc, e.g. -static)
+       x86-64, MSVC and clang-cl: the same kernels, the CPU asked by __cpuid and _xgetbv (its
+         features, and the OS saving the YMM and ZMM registers), with nothing beyond the CRT;
+         cl.exe's warning C4752 is silenced by the header
+       aarch64 (GCC, Clang: Apple silicon, ARM consoles and phones, Linux): NEON
+       WebAssembly (emscripten): SIMD128 with -msimd128, else scalar
+       elsewhere (i386, MSVC on ARM64, 32-bit ARM, RISC-V): scalar
+     The same bits on every platform, for every query and every kernel: each operation rounds
+     once, as written, in float or in double. A compiler that fuses a multiply and an add into
+     an FMA changes last bits, and compilers do by default in places (GCC in its GNU modes, which
+     CMake's defaults are; Clang where the target has FMA: -march=haswell, aarch64), so the
+     implementation turns contraction off for itself (#pragma GCC optimize, Clang's fp contract,
+     MSVC's fp_contract) and restores it after where the compiler can; NEON's products also pass
+     an empty asm, which no fusing sees through. Clang alone ignores its pragma under an explicit
+     -ffp-contract=fast: leave that flag off this file. i386's x87 arithmetic keeps 80-bit
+     intermediates and cannot match: it stops the compilation with an #error naming -msse2
+     -mfpmath=sse (MSVC: /arch:SSE2), as -ffast-math and /fp:fast do (CONFIGURATION).
+     tests/platforms/answers.txt holds 640 rays and the bits of every answer; CI checks it on
+     x86-64 with every kernel (GCC, Clang, GNU modes, -march=native, -O0), i386 with SSE2,
+     mingw-w64 under wine, MSVC's target (compiled by clang as clang-cl and with cl.exe's
+     macros, then run under wine: there is no cl.exe here), aarch64 under qemu and WebAssembly
+     under node, scalar and SIMD128.
+     Stack, for fiber and job stacks (x86-64, GCC 12 -O2, tests/platforms/stack_usage.c): a query
+     (kdrt_intersect, kdrt_occluded, kdrt_intersect_k) 1.6 KB on the scalar kernel, 2.7 KB on the
+     AVX2 and AVX-512 ones (their frames are 32-byte aligned); a batch call 2.5 KB scalar, 12 KB
+     AVX2, 19 KB AVX-512; a build 19 KB for a tree 29 deep, and by its frames' sizes about 470
+     bytes more a level, so about 35 KB at KDRT_MAX_DEPTH. A parallel build's tasks need as much
+     on each thread.
 
    SCENES
      A kdrt_scene puts many geometries behind one query, as an engine has them. Each entry
