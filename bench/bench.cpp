@@ -119,15 +119,7 @@ uint32_t kernel_flags(const std::string &kernel) {
     return 0;  // avx512 and default: the widest kernel the CPU runs
 }
 
-const char *kernel_name(kdrt_kernel kernel) {
-    switch (kernel) {
-    case KDRT_KERNEL_AVX2: return "avx2";
-    case KDRT_KERNEL_AVX512: return "avx512";
-    case KDRT_KERNEL_NEON: return "neon";
-    case KDRT_KERNEL_SIMD128: return "simd128";
-    default: return "scalar";
-    }
-}
+const char *kernel_name(kdrt_kernel kernel) { return kdrt_kernel_string(kernel); }
 
 bool kernel_that_runs(const std::string &kernel, kdrt_kernel &runs, std::string &error) {
     const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};

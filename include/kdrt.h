@@ -645,6 +645,9 @@ typedef struct kdrt_tree_stats {
 typedef struct kdrt_tree kdrt_tree;
 
 KDRT_API const char *kdrt_result_string(kdrt_result result);
+/* A kernel's short name: "scalar", "avx2", "avx512", "neon", "simd128" (kdrt-bench's --kernel
+   names); "unknown" for another value. */
+KDRT_API const char *kdrt_kernel_string(kdrt_kernel kernel);
 
 KDRT_API kdrt_aabb kdrt_aabb_empty(void);
 KDRT_API void kdrt_aabb_grow(kdrt_aabb *box, const float point[3]);
@@ -1396,6 +1399,18 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
         return "an instance transform is singular, has a NaN or infinite entry, or carries its tree beyond float's range";
     }
     return "unknown kdrt_result";
+}
+
+KDRT_API const char *kdrt_kernel_string(kdrt_kernel kernel)
+{
+    switch (kernel) {
+    case KDRT_KERNEL_SCALAR: return "scalar";
+    case KDRT_KERNEL_AVX2: return "avx2";
+    case KDRT_KERNEL_AVX512: return "avx512";
+    case KDRT_KERNEL_NEON: return "neon";
+    case KDRT_KERNEL_SIMD128: return "simd128";
+    }
+    return "unknown";
 }
 
 KDRT_API kdrt_aabb kdrt_aabb_empty(void)

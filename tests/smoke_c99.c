@@ -1,5 +1,5 @@
 /* The header with its implementation as strict C99 (-std=c99 -Wall -Wextra -pedantic -Werror):
-   a tiny tree, one hit, one miss, a query with culling and a filter, the k nearest hits, walking the tree, kdrt_result_string, one refraction and the medium stack. */
+   a tiny tree, one hit, one miss, a query with culling and a filter, the k nearest hits, walking the tree, kdrt_result_string and kdrt_kernel_string, one refraction and the medium stack. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -125,6 +125,10 @@ int main(void)
     check(strcmp(kdrt_result_string(KDRT_SUCCESS), "success") == 0, "kdrt_result_string(KDRT_SUCCESS)");
     check(strcmp(kdrt_result_string(KDRT_ERROR_OUT_OF_MEMORY), "out of memory") == 0,
           "kdrt_result_string(KDRT_ERROR_OUT_OF_MEMORY)");
+    check(strcmp(kdrt_kernel_string(stats.kernel), "unknown") != 0 &&
+              strcmp(kdrt_kernel_string(KDRT_KERNEL_NEON), "neon") == 0 &&
+              strcmp(kdrt_kernel_string((kdrt_kernel)99), "unknown") == 0,
+          "kdrt_kernel_string");
     check(kdrt_tree_build(NULL, &options, &tree, NULL) == KDRT_ERROR_NULL_ARGUMENT && tree == NULL,
           "NULL mesh is KDRT_ERROR_NULL_ARGUMENT");
 

@@ -258,18 +258,6 @@ static uint32_t batch_differences(const answerer *q, const kdrt_ray *rays,
     return bad;
 }
 
-static const char *kernel_name(kdrt_kernel k)
-{
-    switch (k) {
-    case KDRT_KERNEL_SCALAR: return "scalar";
-    case KDRT_KERNEL_AVX2: return "avx2";
-    case KDRT_KERNEL_AVX512: return "avx512";
-    case KDRT_KERNEL_NEON: return "neon";
-    case KDRT_KERNEL_SIMD128: return "simd128";
-    default: return "other";
-    }
-}
-
 /* One line: 8 words of ray, '|', ANSWER_WORDS words of answers. */
 static int parse_line(const char *line, uint32_t ray_words[RAY_WORDS], uint32_t answers[ANSWER_WORDS])
 {
@@ -412,7 +400,7 @@ int main(int argc, char **argv)
             }
             n = batch_differences(&q, rays, expected, count);
             printf("answers: kernel %s, builder %s: %u rays, %u differ from the file, %u batch answers differ\n",
-                   kernel_name(stats.kernel), b ? "sah" : "median", count, bad, n);
+                   kdrt_kernel_string(stats.kernel), b ? "sah" : "median", count, bad, n);
             if (bad || n) ++failed;
             else ++passed;
             answerer_free(&q);

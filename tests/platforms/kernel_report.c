@@ -39,16 +39,6 @@ typedef struct answers {
     uint8_t occluded[RAYS];
 } answers;
 
-static const char *kernel_name(kdrt_kernel kernel)
-{
-    switch (kernel) {
-    case KDRT_KERNEL_SCALAR: return "scalar";
-    case KDRT_KERNEL_AVX2: return "avx2";
-    case KDRT_KERNEL_AVX512: return "avx512";
-    }
-    return "unknown";
-}
-
 /* A deterministic generator of floats in [0, 1): no libc state. */
 static float next_unit(uint32_t *state)
 {
@@ -224,11 +214,11 @@ int main(void)
             }
             kdrt_tree_get_stats(tree, &stats);
             snprintf(label, sizeof label, "%s, %s (%s kernel)", flag_names[f], intersector_names[m],
-                     kernel_name(stats.kernel));
+                     kdrt_kernel_string(stats.kernel));
             failures += trace(tree, &s, f == 2 ? &reference : &other, label, &work);
             if (m == 0)
                 printf("kernel %s: %s (batches: %llu packets, %llu lanes)\n", flag_names[f],
-                       kernel_name(stats.kernel), (unsigned long long)work.packets,
+                       kdrt_kernel_string(stats.kernel), (unsigned long long)work.packets,
                        (unsigned long long)work.packet_lanes);
             /* The packet code of the kernel ran: 16 lanes wide (more than 8 a packet on average:
                the camera's rays make full packets) with AVX-512, 8 with AVX2, none scalar. */

@@ -108,18 +108,6 @@ static uint32_t checksum(const kdrt_hit *hits, uint32_t count)
     return sum;
 }
 
-static const char *kernel_name(kdrt_kernel kernel)
-{
-    switch (kernel) {
-    case KDRT_KERNEL_SCALAR: return "scalar";
-    case KDRT_KERNEL_AVX2: return "avx2";
-    case KDRT_KERNEL_AVX512: return "avx512";
-    case KDRT_KERNEL_NEON: return "neon";
-    case KDRT_KERNEL_SIMD128: return "simd128";
-    }
-    return "unknown";
-}
-
 /* Traces the rays on tree into hits, runs times; returns the best run's milliseconds. */
 static double trace(const kdrt_tree *tree, const kdrt_ray *rays, uint32_t count, kdrt_hit *hits,
                     int runs, uint32_t *hit_count)
@@ -181,7 +169,7 @@ int main(int argc, char **argv)
         }
         kdrt_tree_get_stats(trees[k], &stats);
         ms = trace(trees[k], rays, count, hits[k], both ? 3 : 1, &found);
-        printf("kernel %s: %u triangles, %u rays, %u hits, checksum %08x", kernel_name(stats.kernel),
+        printf("kernel %s: %u triangles, %u rays, %u hits, checksum %08x", kdrt_kernel_string(stats.kernel),
                stats.triangles, count, found, checksum(hits[k], count));
         printf(", %.1f ms, %.0f rays/s", ms, ms > 0.0 ? count / (ms * 1e-3) : 0.0);
         printf("\n");
