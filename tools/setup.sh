@@ -33,6 +33,7 @@ PLATFORM_PACKAGES=(
   wine64                      # ... run under wine
   g++-aarch64-linux-gnu       # aarch64 (the NEON kernel)
   qemu-user                   # ... run under qemu-aarch64
+  ninja-build                 # ... the cross build's generator
   emscripten                  # WebAssembly, run under node (node-acorn comes with it)
 )
 
