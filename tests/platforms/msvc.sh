@@ -68,12 +68,7 @@ compile() {
     "$clang" "${target[@]}" "$@" "${warnings[@]}" "${include[@]}" -c "$source" -o "$work/$name.obj" \
         2>"$work/$name.log" || touch "$work/$name.failed" &
     compiles+=($!)
-    while :; do
-        running=0
-        for pid in "${compiles[@]}"; do if kill -0 "$pid" 2>/dev/null; then running=$((running + 1)); fi; done
-        [ "$running" -lt 2 ] && break
-        sleep 0.05
-    done
+    while (( $(jobs -rp | wc -l) >= 2 )); do wait -n || true; done # each leaves its .failed
 }
 
 # compiled NAME: whether NAME.obj compiled (its errors printed, and counted, if not).

@@ -62,12 +62,7 @@ compile() {
         touch "$work/$output.failed"
     } &
     compiles+=($!)
-    while :; do
-        running=0
-        for pid in "${compiles[@]}"; do if kill -0 "$pid" 2>/dev/null; then running=$((running + 1)); fi; done
-        [ "$running" -lt 2 ] && break
-        sleep 0.1
-    done
+    while (( $(jobs -rp | wc -l) >= 2 )); do wait -n || true; done # each leaves its .failed
 }
 
 compile smoke_c99.exe "$cc" -std=c99 "${release[@]}" "${warnings[@]}" "${strict[@]}" "${include[@]}" \
