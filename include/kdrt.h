@@ -4994,15 +4994,20 @@ typedef struct kdrt__level_node {
     uint32_t first, count; /* count 0: an inner node */
 } kdrt__level_node;
 
+/* What the builder reads of an instance, in order rather than from the instances. */
+typedef struct kdrt__level_prim {
+    kdrt_aabb box;
+    float centre[3];
+} kdrt__level_prim;
+
 /* A commit's top level lives in one arena, which the next commit reuses when it fits: the nodes
-   (at most 2n - 1 over n instances), the order of the instances (items) and the builder's copy
-   of their boxes, read in order rather than from the instances. */
+   (at most 2n - 1 over n instances), the order of the instances (items) and their prims. */
 typedef struct kdrt__level {
     void *arena;
     size_t arena_bytes;
     kdrt__level_node *nodes; /* NULL: no instance to walk */
     uint32_t *items;       /* instance indices, a leaf's a run */
-    kdrt_aabb *boxes;      /* [instance index] */
+    struct kdrt__level_prim *prims; /* [instance index] */
     kdrt_aabb bounds;
 } kdrt__level;
 
@@ -5127,37 +5132,35 @@ typedef struct kdrt__level_task {
 typedef struct kdrt__level_builder {
     kdrt__level_node *nodes;
     uint32_t *items;
-    const kdrt_aabb *boxes;
+    const kdrt__level_prim *prims;
     /* The parallel build's first pass leaves subtrees of at most task_size instances here. */
     kdrt__level_task *tasks;
     uint32_t task_count, task_size;
 } kdrt__level_builder;
 
-static float kdrt__box_centre(const kdrt_aabb *box, int axis)
-{
-    return 0.5f * box->min[axis] + 0.5f * box->max[axis]; /* finite for any finite box */
-}
-
-/* The bin of centre c among bins over [lo, lo + bins / scale]; in double, so that a box of any
-   finite size has finite bins. The split and the sort into children both call it, so they
+/* The bin of centre c among bins over [lo, lo + bins / scale], clamped to them (a NaN from
+   an overflowing difference too). The split and the sort into children both call it, so they
    agree. */
-static uint32_t kdrt__level_bin(float c, double lo, double scale, uint32_t bins)
+static uint32_t kdrt__level_bin(float c, float lo, float scale, uint32_t bins)
 {
-    const double f = ((double)c - lo) * scale; /* >= 0: c >= lo */
-    return f >= (double)(bins - 1u) ? bins - 1u : (uint32_t)f;
+    const float f = (c - lo) * scale;
+    return f < (float)(bins - 1u) ? (f > 0.0f ? (uint32_t)f : 0u) : bins - 1u;
 }
 
-static void kdrt__grow_box(kdrt_aabb *box, const kdrt_aabb *b)
+/* box grown to hold b; written out, as compilers leave a loop of three as it is. */
+static KDRT__FORCEINLINE void kdrt__grow_box(kdrt_aabb *box, const kdrt_aabb *b)
 {
-    int a;
-    for (a = 0; a < 3; ++a) {
-        box->min[a] = b->min[a] < box->min[a] ? b->min[a] : box->min[a];
-        box->max[a] = b->max[a] > box->max[a] ? b->max[a] : box->max[a];
-    }
+    box->min[0] = b->min[0] < box->min[0] ? b->min[0] : box->min[0];
+    box->min[1] = b->min[1] < box->min[1] ? b->min[1] : box->min[1];
+    box->min[2] = b->min[2] < box->min[2] ? b->min[2] : box->min[2];
+    box->max[0] = b->max[0] > box->max[0] ? b->max[0] : box->max[0];
+    box->max[1] = b->max[1] > box->max[1] ? b->max[1] : box->max[1];
+    box->max[2] = b->max[2] > box->max[2] ? b->max[2] : box->max[2];
 }
 
 /* Splits items[begin, end) (n > 1) by the binned SAH over their centres, as many bins as items
-   up to KDRT__LEVEL_BINS: 1 with *mid and the children's boxes, 0 for a leaf. */
+   up to KDRT__LEVEL_BINS, the three axes binned in one pass: 1 with *mid and the children's
+   boxes, 0 for a leaf. */
 static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box, uint32_t begin,
                              uint32_t end, uint32_t *mid, kdrt_aabb *left, kdrt_aabb *right)
 {
@@ -5166,51 +5169,58 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
     const double area = kdrt__half_area(box->min, box->max);
     double best = n > KDRT__LEVEL_MAX_LEAF ? INFINITY /* any split beats a leaf this big */
                                            : (KDRT__LEVEL_INSTANCE_COST * n - KDRT__LEVEL_TRAVERSAL_COST) * area;
-    double lo = 0.0, scale = 0.0;
-    uint32_t i, k, best_axis = 3, best_bin = 0;
-    kdrt_aabb centres = kdrt_aabb_empty();
+    kdrt_aabb bin_box[3][KDRT__LEVEL_BINS], centres = kdrt_aabb_empty();
+    uint32_t bin_count[3][KDRT__LEVEL_BINS], i, k, best_axis = 3, best_bin = 0;
+    float lo[3], scale[3];
     int axis;
     for (i = begin; i < end; ++i) {
-        const kdrt_aabb *ib = &b->boxes[b->items[i]];
+        const float *c = b->prims[b->items[i]].centre;
         for (axis = 0; axis < 3; ++axis) {
-            const float c = kdrt__box_centre(ib, axis);
-            centres.min[axis] = c < centres.min[axis] ? c : centres.min[axis];
-            centres.max[axis] = c > centres.max[axis] ? c : centres.max[axis];
+            centres.min[axis] = c[axis] < centres.min[axis] ? c[axis] : centres.min[axis];
+            centres.max[axis] = c[axis] > centres.max[axis] ? c[axis] : centres.max[axis];
         }
     }
     for (axis = 0; axis < 3; ++axis) {
-        kdrt_aabb bin_box[KDRT__LEVEL_BINS], acc;
-        uint32_t bin_count[KDRT__LEVEL_BINS], above_count[KDRT__LEVEL_BINS], count = 0;
-        double above_area[KDRT__LEVEL_BINS];
-        const double axis_lo = centres.min[axis];
-        double axis_scale;
-        if (!(centres.max[axis] > centres.min[axis])) continue;
-        axis_scale = bins / ((double)centres.max[axis] - axis_lo);
-        for (k = 0; k < bins; ++k) bin_box[k] = kdrt_aabb_empty(), bin_count[k] = 0;
-        for (i = begin; i < end; ++i) {
-            const kdrt_aabb *ib = &b->boxes[b->items[i]];
-            k = kdrt__level_bin(kdrt__box_centre(ib, axis), axis_lo, axis_scale, bins);
-            bin_count[k] += 1u;
-            kdrt__grow_box(&bin_box[k], ib);
+        /* In double, so that a finite extent gives a finite scale; 0 for a flat axis, whose
+           centres all fall in bin 0. */
+        const double extent = (double)centres.max[axis] - centres.min[axis];
+        lo[axis] = centres.min[axis];
+        scale[axis] = extent > 0.0 ? (float)(bins / extent) : 0.0f;
+        for (k = 0; k < bins; ++k) bin_box[axis][k] = kdrt_aabb_empty(), bin_count[axis][k] = 0;
+    }
+    for (i = begin; i < end; ++i) {
+        const kdrt__level_prim *p = &b->prims[b->items[i]];
+        for (axis = 0; axis < 3; ++axis) {
+            k = kdrt__level_bin(p->centre[axis], lo[axis], scale[axis], bins);
+            bin_count[axis][k] += 1u;
+            kdrt__grow_box(&bin_box[axis][k], &p->box);
         }
+    }
+    for (axis = 0; axis < 3; ++axis) {
+        uint32_t above_count[KDRT__LEVEL_BINS], count = 0;
+        double above_area[KDRT__LEVEL_BINS];
+        kdrt_aabb acc = kdrt_aabb_empty();
+        if (scale[axis] == 0.0f) continue;
         /* Above the plane after bin k - 1: bins k and up, swept from the top. */
-        acc = kdrt_aabb_empty();
         for (k = bins - 1u; k > 0; --k) {
-            kdrt__grow_box(&acc, &bin_box[k]), count += bin_count[k];
+            if (bin_count[axis][k]) { /* an empty bin changes nothing above it */
+                kdrt__grow_box(&acc, &bin_box[axis][k]), count += bin_count[axis][k];
+                above_area[k] = kdrt__half_area(acc.min, acc.max);
+            } else {
+                above_area[k] = k + 1u < bins ? above_area[k + 1u] : 0.0;
+            }
             above_count[k] = count;
-            above_area[k] = count ? kdrt__half_area(acc.min, acc.max) : 0.0;
         }
         acc = kdrt_aabb_empty(), count = 0;
         for (k = 1; k < bins; ++k) {
             double cost;
-            kdrt__grow_box(&acc, &bin_box[k - 1]), count += bin_count[k - 1];
-            if (count == 0 || above_count[k] == 0) continue;
+            /* After an empty bin the plane costs what the one before it did. */
+            if (!bin_count[axis][k - 1]) continue;
+            kdrt__grow_box(&acc, &bin_box[axis][k - 1]), count += bin_count[axis][k - 1];
+            if (above_count[k] == 0) continue;
             cost = KDRT__LEVEL_INSTANCE_COST * (kdrt__half_area(acc.min, acc.max) * count +
                                                 above_area[k] * above_count[k]);
-            if (cost < best) {
-                best = cost, best_axis = (uint32_t)axis, best_bin = k;
-                lo = axis_lo, scale = axis_scale, *left = acc;
-            }
+            if (cost < best) best = cost, best_axis = (uint32_t)axis, best_bin = k, *left = acc;
         }
     }
     if (best_axis == 3) {
@@ -5219,7 +5229,7 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
         /* Every centre at one point: halves in the items' order. */
         half = begin + n / 2u;
         *left = *right = kdrt_aabb_empty();
-        for (i = begin; i < end; ++i) kdrt__grow_box(i < half ? left : right, &b->boxes[b->items[i]]);
+        for (i = begin; i < end; ++i) kdrt__grow_box(i < half ? left : right, &b->prims[b->items[i]].box);
         *mid = half;
         return 1;
     }
@@ -5228,11 +5238,11 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
     i = begin, k = end;
     while (i < k) {
         const uint32_t item = b->items[i];
-        const kdrt_aabb *ib = &b->boxes[item];
-        if (kdrt__level_bin(kdrt__box_centre(ib, (int)best_axis), lo, scale, bins) < best_bin) {
+        const kdrt__level_prim *p = &b->prims[item];
+        if (kdrt__level_bin(p->centre[best_axis], lo[best_axis], scale[best_axis], bins) < best_bin) {
             ++i;
         } else {
-            kdrt__grow_box(right, ib);
+            kdrt__grow_box(right, &p->box);
             b->items[i] = b->items[--k];
             b->items[k] = item;
         }
@@ -5280,7 +5290,8 @@ static kdrt_result kdrt__level_reserve(const kdrt_scene *sc, uint32_t n, void **
     size_t nodes, need;
     *fresh = NULL;
     if (!kdrt__mul_size(2u * (size_t)n, sizeof(kdrt__level_node), &nodes) ||
-        !kdrt__mul_size(n, sizeof(kdrt_aabb) + sizeof(uint32_t), &need) || need > (size_t)-1 - nodes)
+        !kdrt__mul_size(n, sizeof(kdrt__level_prim) + sizeof(uint32_t), &need) ||
+        need > (size_t)-1 - nodes)
         return KDRT_ERROR_SIZE_OVERFLOW;
     *bytes = need + nodes;
     if (*bytes <= sc->top.arena_bytes) return KDRT_SUCCESS;
@@ -5303,10 +5314,12 @@ static void kdrt__level_build(kdrt_scene *sc)
     top->nodes = NULL;
     if (n == 0) return;
     top->nodes = (kdrt__level_node *)top->arena;
-    top->boxes = (kdrt_aabb *)(top->nodes + 2u * (size_t)n);
-    top->items = (uint32_t *)(top->boxes + n);
+    top->prims = (kdrt__level_prim *)(top->nodes + 2u * (size_t)n);
+    top->items = (uint32_t *)(top->prims + n);
     for (i = 0; i < n; ++i) {
-        top->boxes[i] = in[i].box;
+        int a;
+        top->prims[i].box = in[i].box;
+        for (a = 0; a < 3; ++a) top->prims[i].centre[a] = 0.5f * in[i].box.min[a] + 0.5f * in[i].box.max[a];
         top->bounds = kdrt_aabb_union(top->bounds, in[i].box); /* the scene's box holds them all */
         if (in[i].mask && in[i].box.min[0] <= in[i].box.max[0]) {
             top->items[count++] = i;
@@ -5317,7 +5330,7 @@ static void kdrt__level_build(kdrt_scene *sc)
         top->nodes = NULL;
         return;
     }
-    b.nodes = top->nodes, b.items = top->items, b.boxes = top->boxes;
+    b.nodes = top->nodes, b.items = top->items, b.prims = top->prims;
     b.tasks = NULL, b.task_count = 0, b.task_size = 0;
     if (count >= KDRT__LEVEL_PARALLEL_MIN && sc->options.scheduler.run)
         b.tasks = tasks, b.task_size = count / 16u;
@@ -5733,22 +5746,25 @@ static void kdrt__name_mesh_hit(const kdrt_tree *meshes, kdrt_hit *hit)
 /* The top level's slab test, kdrt__clip_to_box's conservative entry and exit, for rays whose
    inverse direction is finite on every axis (no axis needs the origin alone): no branch an
    axis. */
+#define KDRT__LEVEL_SLAB(a)                                                                        \
+    {                                                                                              \
+        const float ta = (box->min[a] - s->org[a]) * s->inv_dir[a];                                \
+        const float tb = (box->max[a] - s->org[a]) * s->inv_dir[a];                                \
+        const float tnear = (ta < tb ? ta : tb) * (1.0f - KDRT__T_SLACK);                          \
+        const float tfar = (ta < tb ? tb : ta) * (1.0f + KDRT__T_SLACK);                           \
+        enter = tnear > enter ? tnear : enter;                                                     \
+        exit = tfar < exit ? tfar : exit;                                                          \
+    }
 static KDRT__FORCEINLINE int kdrt__level_clip(const kdrt_aabb *box, const kdrt__ray_setup *s,
                                               float *t0)
 {
     float enter = s->tmin, exit = s->tmax;
-    int a;
-    for (a = 0; a < 3; ++a) {
-        const float ta = (box->min[a] - s->org[a]) * s->inv_dir[a];
-        const float tb = (box->max[a] - s->org[a]) * s->inv_dir[a];
-        const float tnear = (ta < tb ? ta : tb) * (1.0f - KDRT__T_SLACK);
-        const float tfar = (ta < tb ? tb : ta) * (1.0f + KDRT__T_SLACK);
-        enter = tnear > enter ? tnear : enter;
-        exit = tfar < exit ? tfar : exit;
-    }
+    /* Written out, as compilers leave a loop of three as it is. */
+    KDRT__LEVEL_SLAB(0) KDRT__LEVEL_SLAB(1) KDRT__LEVEL_SLAB(2)
     *t0 = enter;
     return enter <= exit;
 }
+#undef KDRT__LEVEL_SLAB
 
 /* One instance of the walk: skipped unless its mask lets the query through and (unless
    box_tested: a leaf of one, whose box is the instance's) the ray meets its world box before the
