@@ -4996,10 +4996,15 @@ typedef struct kdrt__level_node {
     uint32_t first[4], count[4];
 } kdrt__level_node;
 
+/* A box padded to 4 lanes (the fourth 0, or infinite when empty), for SSE2. */
+typedef struct kdrt__box4 {
+    float min[4], max[4];
+} kdrt__box4;
+
 /* What the builder reads of an instance, in order rather than from the instances. */
 typedef struct kdrt__level_prim {
-    kdrt_aabb box;
-    float centre[3];
+    kdrt__box4 box;
+    float centre[4];
 } kdrt__level_prim;
 
 /* A commit's top level lives in one arena, which the next commit reuses when it fits: the nodes
@@ -5152,15 +5157,34 @@ static uint32_t kdrt__level_bin(float c, float lo, float scale, uint32_t bins)
     return f < (float)(bins - 1u) ? (f > 0.0f ? (uint32_t)f : 0u) : bins - 1u;
 }
 
-/* box grown to hold b; written out, as compilers leave a loop of three as it is. */
-static KDRT__FORCEINLINE void kdrt__grow_box(kdrt_aabb *box, const kdrt_aabb *b)
+static kdrt__box4 kdrt__box4_empty(void)
 {
-    box->min[0] = b->min[0] < box->min[0] ? b->min[0] : box->min[0];
-    box->min[1] = b->min[1] < box->min[1] ? b->min[1] : box->min[1];
-    box->min[2] = b->min[2] < box->min[2] ? b->min[2] : box->min[2];
-    box->max[0] = b->max[0] > box->max[0] ? b->max[0] : box->max[0];
-    box->max[1] = b->max[1] > box->max[1] ? b->max[1] : box->max[1];
-    box->max[2] = b->max[2] > box->max[2] ? b->max[2] : box->max[2];
+    kdrt__box4 box;
+    int a;
+    for (a = 0; a < 4; ++a) box.min[a] = INFINITY, box.max[a] = -INFINITY;
+    return box;
+}
+
+/* box grown to hold b: the same min and max a lane on SSE2 and in plain C. */
+static KDRT__FORCEINLINE void kdrt__grow_box(kdrt__box4 *box, const kdrt__box4 *b)
+{
+#if KDRT__SSE2
+    _mm_storeu_ps(box->min, _mm_min_ps(_mm_loadu_ps(b->min), _mm_loadu_ps(box->min)));
+    _mm_storeu_ps(box->max, _mm_max_ps(_mm_loadu_ps(b->max), _mm_loadu_ps(box->max)));
+#else
+    int a;
+    for (a = 0; a < 4; ++a) {
+        box->min[a] = b->min[a] < box->min[a] ? b->min[a] : box->min[a];
+        box->max[a] = b->max[a] > box->max[a] ? b->max[a] : box->max[a];
+    }
+#endif
+}
+
+static kdrt_aabb kdrt__box3(const kdrt__box4 *b)
+{
+    kdrt_aabb box;
+    memcpy(box.min, b->min, sizeof box.min), memcpy(box.max, b->max, sizeof box.max);
+    return box;
 }
 
 /* Splits items[begin, end) (n > 1) by the binned SAH over their centres, as many bins as items
@@ -5174,7 +5198,8 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
     const double area = kdrt__half_area(box->min, box->max);
     double best = n > KDRT__LEVEL_MAX_LEAF ? INFINITY /* any split beats a leaf this big */
                                            : (KDRT__LEVEL_INSTANCE_COST * n - KDRT__LEVEL_TRAVERSAL_COST) * area;
-    kdrt_aabb bin_box[3][KDRT__LEVEL_BINS], centres = kdrt_aabb_empty();
+    kdrt__box4 bin_box[3][KDRT__LEVEL_BINS], acc, below = kdrt__box4_empty(), above;
+    kdrt_aabb centres = kdrt_aabb_empty();
     uint32_t bin_count[3][KDRT__LEVEL_BINS], i, k, best_axis = 3, best_bin = 0;
     float lo[3], scale[3];
     int axis;
@@ -5191,7 +5216,7 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
         const double extent = (double)centres.max[axis] - centres.min[axis];
         lo[axis] = centres.min[axis];
         scale[axis] = extent > 0.0 ? (float)(bins / extent) : 0.0f;
-        for (k = 0; k < bins; ++k) bin_box[axis][k] = kdrt_aabb_empty(), bin_count[axis][k] = 0;
+        for (k = 0; k < bins; ++k) bin_box[axis][k] = kdrt__box4_empty(), bin_count[axis][k] = 0;
     }
     for (i = begin; i < end; ++i) {
         const kdrt__level_prim *p = &b->prims[b->items[i]];
@@ -5204,8 +5229,8 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
     for (axis = 0; axis < 3; ++axis) {
         uint32_t above_count[KDRT__LEVEL_BINS], count = 0;
         double above_area[KDRT__LEVEL_BINS];
-        kdrt_aabb acc = kdrt_aabb_empty();
         if (scale[axis] == 0.0f) continue;
+        acc = kdrt__box4_empty();
         /* Above the plane after bin k - 1: bins k and up, swept from the top. */
         for (k = bins - 1u; k > 0; --k) {
             if (bin_count[axis][k]) { /* an empty bin changes nothing above it */
@@ -5216,7 +5241,7 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
             }
             above_count[k] = count;
         }
-        acc = kdrt_aabb_empty(), count = 0;
+        acc = kdrt__box4_empty(), count = 0;
         for (k = 1; k < bins; ++k) {
             double cost;
             /* After an empty bin the plane costs what the one before it did. */
@@ -5225,7 +5250,7 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
             if (above_count[k] == 0) continue;
             cost = KDRT__LEVEL_INSTANCE_COST * (kdrt__half_area(acc.min, acc.max) * count +
                                                 above_area[k] * above_count[k]);
-            if (cost < best) best = cost, best_axis = (uint32_t)axis, best_bin = k, *left = acc;
+            if (cost < best) best = cost, best_axis = (uint32_t)axis, best_bin = k, below = acc;
         }
     }
     if (best_axis == 3) {
@@ -5233,13 +5258,13 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
         if (n <= KDRT__LEVEL_MAX_LEAF) return 0;
         /* Every centre at one point: halves in the items' order. */
         half = begin + n / 2u;
-        *left = *right = kdrt_aabb_empty();
-        for (i = begin; i < end; ++i) kdrt__grow_box(i < half ? left : right, &b->prims[b->items[i]].box);
-        *mid = half;
+        above = kdrt__box4_empty();
+        for (i = begin; i < end; ++i) kdrt__grow_box(i < half ? &below : &above, &b->prims[b->items[i]].box);
+        *mid = half, *left = kdrt__box3(&below), *right = kdrt__box3(&above);
         return 1;
     }
     /* The bins below best_bin first, in place; the box of those above as they go. */
-    *right = kdrt_aabb_empty();
+    above = kdrt__box4_empty();
     i = begin, k = end;
     while (i < k) {
         const uint32_t item = b->items[i];
@@ -5247,12 +5272,12 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
         if (kdrt__level_bin(p->centre[best_axis], lo[best_axis], scale[best_axis], bins) < best_bin) {
             ++i;
         } else {
-            kdrt__grow_box(right, &p->box);
+            kdrt__grow_box(&above, &p->box);
             b->items[i] = b->items[--k];
             b->items[k] = item;
         }
     }
-    *mid = i;
+    *mid = i, *left = kdrt__box3(&below), *right = kdrt__box3(&above);
     return 1;
 }
 
@@ -5360,9 +5385,13 @@ static void kdrt__level_build(kdrt_scene *sc)
     top->prims = (kdrt__level_prim *)(top->nodes + n); /* at most n - 1 nodes, and 1 */
     top->items = (uint32_t *)(top->prims + n);
     for (i = 0; i < n; ++i) {
+        kdrt__level_prim *p = &top->prims[i];
         int a;
-        top->prims[i].box = in[i].box;
-        for (a = 0; a < 3; ++a) top->prims[i].centre[a] = 0.5f * in[i].box.min[a] + 0.5f * in[i].box.max[a];
+        for (a = 0; a < 3; ++a) {
+            p->box.min[a] = in[i].box.min[a], p->box.max[a] = in[i].box.max[a];
+            p->centre[a] = 0.5f * in[i].box.min[a] + 0.5f * in[i].box.max[a];
+        }
+        p->box.min[3] = p->box.max[3] = p->centre[3] = 0.0f;
         top->bounds = kdrt_aabb_union(top->bounds, in[i].box); /* the scene's box holds them all */
         if (in[i].mask && in[i].box.min[0] <= in[i].box.max[0]) {
             top->items[count++] = i;
