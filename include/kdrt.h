@@ -5574,38 +5574,55 @@ static kdrt_result kdrt__build_meshes(const kdrt_scene *sc, const kdrt__layout *
     return r;
 }
 
-/* Places the moved instances among entries [begin, end) of a commit that keeps the entries. */
-static void kdrt__place_moved(kdrt_scene *sc, uint32_t begin, uint32_t end)
+/* Entries [begin, end) of a commit that keeps the same IDs in the same places: each taken from
+   next, an instance placed again when its tree or transform changed, masks as the flags say. */
+static void kdrt__update_entries(kdrt_scene *sc, uint32_t begin, uint32_t end)
 {
     uint32_t i;
     for (i = begin; i < end; ++i) {
         kdrt_geometry *e = &sc->now.entries[i];
-        kdrt__instance *in;
-        kdrt_result r;
-        if (e->type != KDRT_GEOMETRY_INSTANCE ||
-            memcmp(e->transform, sc->next[i].transform, sizeof e->transform) == 0)
-            continue;
-        memcpy(e->transform, sc->next[i].transform, sizeof e->transform);
-        in = &sc->now.instances[sc->now.slot[i]];
-        r = kdrt__place_instance(in->tree, e->transform, in);
-        KDRT_ASSERT(r == KDRT_SUCCESS); /* checked by kdrt_scene_set_transform */
-        (void)r;
+        const kdrt_geometry *next = &sc->next[i];
+        if (e->type == KDRT_GEOMETRY_INSTANCE) {
+            kdrt__instance *in = &sc->now.instances[sc->now.slot[i]];
+            if (e->tree != next->tree ||
+                memcmp(e->transform, next->transform, sizeof e->transform) != 0) {
+                const kdrt_result r = kdrt__place_instance(next->tree, next->transform, in);
+                KDRT_ASSERT(r == KDRT_SUCCESS); /* checked when attached or moved */
+                (void)r;
+            }
+            in->mask = kdrt__entry_mask(next);
+        } else {
+            sc->now.parts[sc->now.slot[i]].mask = kdrt__entry_mask(next);
+        }
+        *e = *next;
     }
 }
 
-static void kdrt__place_moved_task(void *data, uint32_t chunk)
+static void kdrt__update_task(void *data, uint32_t chunk)
 {
     kdrt_scene *sc = (kdrt_scene *)data;
-    kdrt__place_moved(sc, kdrt__chunk_start(sc->now.entry_count, chunk),
-                      kdrt__chunk_start(sc->now.entry_count, chunk + 1u));
+    kdrt__update_entries(sc, kdrt__chunk_start(sc->now.entry_count, chunk),
+                         kdrt__chunk_start(sc->now.entry_count, chunk + 1u));
 }
 
-/* The commit: the entries laid out anew when they changed (the mesh tree rebuilt when its
-   meshes did), else the moved instances placed again; then the top level. Everything that can
-   fail comes first, so that a failure leaves the scene as it was. */
+/* Whether the next commit keeps every ID in its place (no entry added or removed for good). */
+static int kdrt__same_ids(const kdrt_scene *sc)
+{
+    uint32_t i;
+    if (sc->next_count != sc->now.entry_count) return 0;
+    for (i = 0; i < sc->next_count; ++i)
+        if (sc->next[i].id != sc->now.entries[i].id) return 0;
+    return 1;
+}
+
+/* The commit: the entries laid out anew when IDs came or went (the mesh tree rebuilt when
+   meshes did), else updated in place (a detached and attached ID, a tree swapped under an
+   instance, a move, a flag); then the top level. Everything that can fail comes first, so that a
+   failure leaves the scene as it was. */
 static kdrt_result kdrt__commit(kdrt_scene *sc, kdrt_build_report *report)
 {
     const kdrt_allocator *a = &sc->options.allocator;
+    int relayout;
     kdrt__layout l;
     kdrt_tree *meshes = NULL;
     void *arena;
@@ -5614,7 +5631,8 @@ static kdrt_result kdrt__commit(kdrt_scene *sc, kdrt_build_report *report)
     kdrt_result r;
     memset(&l, 0, sizeof l);
     if (!sc->entries_changed && !sc->moved) return KDRT_SUCCESS; /* nothing to do */
-    if (sc->entries_changed) {
+    relayout = sc->meshes_changed || (sc->entries_changed && !kdrt__same_ids(sc));
+    if (relayout) {
         r = kdrt__lay_out(sc, &l, report);
         if (r == KDRT_SUCCESS && sc->meshes_changed) r = kdrt__build_meshes(sc, &l, &meshes, report);
         if (r != KDRT_SUCCESS) {
@@ -5622,8 +5640,8 @@ static kdrt_result kdrt__commit(kdrt_scene *sc, kdrt_build_report *report)
             return r;
         }
     }
-    r = kdrt__level_reserve(sc, sc->entries_changed ? l.instance_count : sc->now.instance_count,
-                          &arena, &bytes);
+    r = kdrt__level_reserve(sc, relayout ? l.instance_count : sc->now.instance_count, &arena,
+                            &bytes);
     if (r != KDRT_SUCCESS) {
         kdrt_tree_free(meshes);
         kdrt__layout_free(a, &l);
@@ -5634,24 +5652,24 @@ static kdrt_result kdrt__commit(kdrt_scene *sc, kdrt_build_report *report)
         kdrt__free(a, sc->top.arena);
         sc->top.arena = arena, sc->top.arena_bytes = bytes;
     }
-    if (sc->entries_changed) {
+    if (relayout) {
         kdrt__layout_free(a, &sc->now);
         sc->now = l;
         if (sc->meshes_changed) {
             kdrt_tree_free(sc->meshes);
             sc->meshes = meshes;
-        } else if (sc->meshes) {
-            /* The same meshes in the same order: only their masks may have changed. */
-            sc->meshes->meshes.parts = sc->now.parts;
-            sc->meshes->masks_full = 1;
-            for (i = 0; i < sc->now.part_count; ++i)
-                sc->meshes->masks_full &= sc->now.parts[i].mask == 0xFFFFFFFFu;
         }
     } else if (sc->now.instance_count >= KDRT__LEVEL_PARALLEL_MIN && sc->options.scheduler.run) {
-        sc->options.scheduler.run(sc->options.scheduler.user, kdrt__place_moved_task, sc,
-                                  KDRT__CHUNKS);
+        sc->options.scheduler.run(sc->options.scheduler.user, kdrt__update_task, sc, KDRT__CHUNKS);
     } else {
-        kdrt__place_moved(sc, 0, sc->now.entry_count);
+        kdrt__update_entries(sc, 0, sc->now.entry_count);
+    }
+    if (sc->meshes && !sc->meshes_changed) {
+        /* The same meshes in the same order: only their masks may have changed. */
+        sc->meshes->meshes.parts = sc->now.parts;
+        sc->meshes->masks_full = 1;
+        for (i = 0; i < sc->now.part_count; ++i)
+            sc->meshes->masks_full &= sc->now.parts[i].mask == 0xFFFFFFFFu;
     }
     kdrt__level_build(sc);
     sc->bounds = kdrt_aabb_union(sc->meshes ? sc->meshes->bounds : kdrt_aabb_empty(),

@@ -1630,6 +1630,13 @@ TEST_CASE("scene: entries attached, detached, disabled and enabled take effect a
         REQUIRE(kdrt_scene_set_transform(scene.get(), 5, t2.data()) == KDRT_SUCCESS);
         std::memcpy(model.items[5].g.transform, t2.data(), sizeof t2);
     });
+    step("a tree swapped under an ID (detached and attached again, as a deforming mesh's), and moved", [&] {
+        REQUIRE(kdrt_scene_detach(scene.get(), 17) == KDRT_SUCCESS);
+        const kdrt_geometry g = model.instance(17, soup, soup_tree.get(), translate(8, 2, 6) * scale(0.3, 0.7, 0.3));
+        REQUIRE(kdrt_scene_attach(scene.get(), &g) == KDRT_SUCCESS);
+        REQUIRE(kdrt_scene_set_transform(scene.get(), 41, t40.data()) == KDRT_SUCCESS);
+        std::memcpy(model.items[41].g.transform, t40.data(), sizeof t40);
+    });
     step("every instance disabled: the mesh alone", [&] {
         for (uint32_t id : {5u, 17u, 40u, 41u}) {
             REQUIRE(kdrt_scene_enable(scene.get(), id, 0) == KDRT_SUCCESS);
@@ -2185,6 +2192,19 @@ TEST_CASE("scene: allocations are freed, queries allocate nothing, and any one f
     CHECK(differences(expected_moved, expected) > 0);  // the move shows
     kdrt_scene_free(scene);
     CHECK(counter.live_blocks == 0);
+
+    // So does one that swaps an instance's tree (detached and attached under its ID) and
+    // disables another: the IDs stay in their places.
+    REQUIRE(try_build(entries, counter, &scene, report) == KDRT_SUCCESS);
+    REQUIRE(kdrt_scene_detach(scene, 6) == KDRT_SUCCESS);
+    const kdrt_geometry swapped = kdrt_instance_geometry(6, small.tree.get(), moved.data());
+    REQUIRE(kdrt_scene_attach(scene, &swapped) == KDRT_SUCCESS);
+    REQUIRE(kdrt_scene_enable(scene, 2, 0) == KDRT_SUCCESS);
+    counter.calls = 0;
+    REQUIRE(kdrt_scene_commit(scene) == KDRT_SUCCESS);
+    CHECK(counter.calls == 0);
+    CHECK(counter.live_blocks == live_built);
+    kdrt_scene_free(scene);
 
     // One that also attaches an instance, detaches a mesh and disables an instance allocates.
     const Transform third = to_float(translate(1, 5, 2) * scale(0.5, 0.5, 2));
