@@ -341,10 +341,21 @@
      either a mesh (a kdrt_triangles view, borrowed) or an instance (a tree built once by
      kdrt_tree_build(), borrowed, placed by a 3x4 affine transform; one tree may be placed any
      number of times). The scene's meshes are built into one tree together, so a static world
-     costs what one mesh of all their triangles would; the instances sit under a small top-level
-     kd-tree over their world boxes, so moving them (kdrt_scene_set_transform() for each, then
-     kdrt_scene_commit()) rebuilds that top level and nothing else. Zero entries, meshes only and
-     instances only are valid scenes.
+     costs what one mesh of all their triangles would; the instances sit under a small top level,
+     a BVH over their world boxes binned by the boxes' centres (each instance in one leaf, as in
+     Embree and tinybvh). Zero entries, meshes only and instances only are valid scenes.
+     Changes: kdrt_scene_set_transform() moves an instance, kdrt_scene_attach() adds an entry,
+     kdrt_scene_detach() removes one and kdrt_scene_enable() turns one off and on (a disabled
+     entry keeps its ID and is seen by no query), each from the next kdrt_scene_commit() on;
+     until then queries see the scene as it was. A commit places the moved and added instances
+     and rebuilds the top level, in memory the scene keeps from commit to commit (a commit that
+     only moves instances allocates nothing once the scene has held as many), on
+     options.scheduler from 2,048 instances; the same top level on any scheduler. The scene's
+     meshes are built once: attaching or detaching a mesh rebuilds the whole mesh tree at the
+     next commit (a static world's cost), while disabling one rebuilds nothing. A deforming mesh
+     belongs in a tree of its own, placed as an instance: build its new tree, detach the old
+     instance, attach one of the new tree under the same ID, commit, then free the old tree. A
+     failed commit leaves the scene as it was, its changes pending.
      IDs are unique within a scene: a duplicate is refused (KDRT_ERROR_INVALID_GEOMETRY_ID), so a
      hit names one entry and ties have one answer. A hit reports the geometry's ID
      (kdrt_hit.geometry) and the triangle's index within its mesh (an instance's: within its
@@ -372,10 +383,10 @@
      origin beyond 3.4e38 there, as under a scale of 1e-10 from 1e30 away) misses that instance,
      as any ray with an infinite origin misses (QUERIES AND GUARANTEES).
      Ownership: the meshes' buffers and the instances' trees must stay alive and unchanged until
-     kdrt_scene_free(); an instance of a freed tree is the caller's error, which kdrt cannot
-     detect. Threads: queries as on trees (const scene, nothing allocated, any number at once);
-     kdrt_scene_set_transform() and kdrt_scene_commit() change the scene and must not overlap
-     a query on it.
+     kdrt_scene_free(), or until the commit after their entry's kdrt_scene_detach(); an instance
+     of a freed tree is the caller's error, which kdrt cannot detect. Threads:
+     queries as on trees (const scene, nothing allocated, any number at once); the changes and
+     kdrt_scene_commit() change the scene and must not overlap a query on it, nor each other.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -834,6 +845,11 @@ typedef enum kdrt_geometry_type {
     KDRT_GEOMETRY_INSTANCE = 1 /* a built tree placed in the world by an affine transform */
 } kdrt_geometry_type;
 
+typedef enum kdrt_geometry_flags {
+    /* In the scene (its ID taken), seen by no query: kdrt_scene_enable() turns it on and off. */
+    KDRT_GEOMETRY_DISABLED = 1
+} kdrt_geometry_flags;
+
 /* One entry of a scene. Start from kdrt_mesh_geometry() or kdrt_instance_geometry(). */
 typedef struct kdrt_geometry {
     kdrt_geometry_type type;
@@ -849,6 +865,7 @@ typedef struct kdrt_geometry {
        (uniform or not), mirrors and shears are all fine. The tree's box carried into the world
        and widened (SCENES) must stay within float's range, below about 3.4e38. */
     float transform[12];
+    uint32_t flags; /* kdrt_geometry_flags; 0 by default */
 } kdrt_geometry;
 
 typedef struct kdrt_scene kdrt_scene;
@@ -864,20 +881,38 @@ KDRT_API kdrt_geometry kdrt_instance_geometry(uint32_t id, const kdrt_tree *tree
    names the geometry at fault: a mesh's bad triangle or view as kdrt_tree_build() would,
    KDRT_ERROR_NULL_ARGUMENT for an instance without a tree, KDRT_ERROR_INVALID_TRANSFORM,
    KDRT_ERROR_INVALID_GEOMETRY_ID for an ID used twice or KDRT_INVALID_ID, KDRT_ERROR_INVALID_OPTION
-   for an unknown type. */
+   for an unknown type or flag. The scene keeps options (its allocator and scheduler serve every
+   commit; a mesh tree rebuilt by a commit is built with them). */
 KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t count,
                                       const kdrt_build_options *options, kdrt_scene **out_scene,
                                       kdrt_build_report *report);
 KDRT_API void kdrt_scene_free(kdrt_scene *scene); /* NULL is fine; the borrowed trees stay */
-/* Moves instance id to a new transform, from the next kdrt_scene_commit() on; until then queries
-   see the scene as it was. KDRT_ERROR_INVALID_GEOMETRY_ID when id is no instance of the scene,
-   KDRT_ERROR_INVALID_TRANSFORM (nothing changes). Not while queries run. */
+/* Changes to a built scene, each taking effect at the next kdrt_scene_commit(): until then
+   queries see the scene as it was. "The scene" below is the scene as it will be after that
+   commit, with the changes made so far. None of them may overlap a query on the scene.
+   Moves instance id to a new transform. KDRT_ERROR_INVALID_GEOMETRY_ID when id is no instance
+   of the scene, KDRT_ERROR_INVALID_TRANSFORM (nothing changes). */
 KDRT_API kdrt_result kdrt_scene_set_transform(kdrt_scene *scene, uint32_t id,
                                               const float transform[12]);
-/* Applies the moves: rebuilds the top-level tree over the instances' boxes, and only that.
-   KDRT_ERROR_OUT_OF_MEMORY leaves the scene as it was before the moves. Not while queries run. */
+/* Adds an entry, checked as kdrt_scene_build() checks it (the same result codes; nothing changes
+   on failure): KDRT_ERROR_INVALID_GEOMETRY_ID when its ID is in the scene. An instance costs the
+   commit its placing; a mesh makes the commit rebuild the scene's mesh tree. */
+KDRT_API kdrt_result kdrt_scene_attach(kdrt_scene *scene, const kdrt_geometry *geometry);
+/* Removes entry id (KDRT_ERROR_INVALID_GEOMETRY_ID when there is none); its ID is free again.
+   A mesh's removal makes the commit rebuild the mesh tree. */
+KDRT_API kdrt_result kdrt_scene_detach(kdrt_scene *scene, uint32_t id);
+/* Disables entry id (enabled 0: KDRT_GEOMETRY_DISABLED set) or enables it again (1): a disabled
+   entry stays in the scene, its ID taken, and no query sees it. No tree is rebuilt for it. */
+KDRT_API kdrt_result kdrt_scene_enable(kdrt_scene *scene, uint32_t id, int enabled);
+/* Applies the changes: the instances placed again and the top level rebuilt over their boxes;
+   the mesh tree rebuilt only when meshes were attached or detached (with the options of
+   kdrt_scene_build(), its scheduler included). A commit with nothing to apply does nothing.
+   On failure (KDRT_ERROR_OUT_OF_MEMORY, or a rebuilt mesh tree's error such as
+   KDRT_ERROR_NON_FINITE_VERTEX) the scene is as it was before the commit and the changes stay
+   pending. */
 KDRT_API kdrt_result kdrt_scene_commit(kdrt_scene *scene);
-/* The scene's entry with this ID, as built or moved (transform: the committed one), or NULL. */
+/* The scene's entry with this ID as of the last commit (its transform and flags the committed
+   ones), or NULL; valid until the next commit. */
 KDRT_API const kdrt_geometry *kdrt_scene_geometry(const kdrt_scene *scene, uint32_t id);
 /* The world box of everything in the scene (kdrt_aabb_empty() when it holds no triangle). */
 KDRT_API kdrt_aabb kdrt_scene_bounds(const kdrt_scene *scene);
@@ -4951,26 +4986,46 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
 /* ==== scenes: meshes in one tree, instances under a top-level tree ==== */
 
 
-/* The top-level kd-tree: nodes as a tree's, a leaf's u.first indexing refs (instances). */
+/* The top level: a BVH over the instances' world boxes, binned by their centres, each instance
+   in one leaf (as Embree's and tinybvh's top levels are). An inner node's children are nodes
+   first and first + 1; a leaf's instances are items[first .. first + count). */
+typedef struct kdrt__level_node {
+    kdrt_aabb box;
+    uint32_t first, count; /* count 0: an inner node */
+} kdrt__level_node;
+
+/* A commit's top level lives in one arena, which the next commit reuses when it fits: the nodes
+   (at most 2n - 1 over n instances), the order of the instances (items) and the builder's copy
+   of their boxes, read in order rather than from the instances. */
 typedef struct kdrt__level {
-    kdrt__node *nodes;
-    uint32_t *refs;
-    uint32_t node_count, ref_count;
+    void *arena;
+    size_t arena_bytes;
+    kdrt__level_node *nodes; /* NULL: no instance to walk */
+    uint32_t *items;       /* instance indices, a leaf's a run */
+    kdrt_aabb *boxes;      /* [instance index] */
     kdrt_aabb bounds;
 } kdrt__level;
 
-struct kdrt_scene {
-    kdrt_allocator allocator;
-    kdrt_geometry *entries; /* by ascending ID; an instance's transform the committed one */
-    uint32_t *slot;         /* [entry]: its index in parts (a mesh) or instances */
-    uint32_t entry_count;
-    kdrt__part *parts;      /* the meshes, as the mesh tree numbers them */
-    kdrt_tree *meshes;      /* one tree over every mesh; NULL when there is none */
+/* What queries see: the entries of the last commit and where each one's data lies. */
+typedef struct kdrt__layout {
+    kdrt_geometry *entries;    /* by ascending ID; transforms and flags as committed */
+    uint32_t *slot;            /* [entry]: its index in parts (a mesh) or instances */
+    kdrt__part *parts;         /* the meshes, as the mesh tree numbers them */
     kdrt__instance *instances; /* by ascending ID */
-    float *pending;         /* [12 i]: instance i's transform from the next commit */
-    uint32_t instance_count;
+    uint32_t entry_count, part_count, instance_count;
+} kdrt__layout;
+
+struct kdrt_scene {
+    kdrt_build_options options; /* the mesh tree's; its allocator and scheduler serve each commit */
+    kdrt__layout now;
+    kdrt_tree *meshes;          /* one tree over now's meshes; NULL when there is none */
     kdrt__level top;
     kdrt_aabb bounds;
+    /* The scene from the next commit on: every entry by ascending ID, with the transforms and
+       flags set since; *_changed say what the commit must redo beyond the top level. */
+    kdrt_geometry *next;
+    uint32_t next_count, next_capacity;
+    int entries_changed, meshes_changed, moved;
 };
 
 KDRT_API kdrt_geometry kdrt_mesh_geometry(uint32_t id, const kdrt_triangles *mesh)
@@ -4996,14 +5051,15 @@ KDRT_API kdrt_geometry kdrt_instance_geometry(uint32_t id, const kdrt_tree *tree
 }
 
 /* An instance of tree placed by transform: KDRT_ERROR_INVALID_TRANSFORM for a NaN or infinite
-   entry, or a matrix so near singular that its inverse means nothing: |det R| under 2^-40 of the
-   product of its rows' lengths (1 for a rotation, whatever the scales). */
+   entry, a matrix so near singular that its inverse means nothing (|det R| under 2^-40 of the
+   product of its rows' lengths: 1 for a rotation, whatever the scales), or a world box beyond
+   float's range. */
 static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float transform[12],
                                         kdrt__instance *in)
 {
     const double *m = in->to_world;
     double det, rows = 1.0, *inv = in->to_object;
-    int i, k;
+    int i, j;
     for (i = 0; i < 12; ++i) {
         if (!kdrt__finite(transform[i])) return KDRT_ERROR_INVALID_TRANSFORM;
         in->to_world[i] = transform[i];
@@ -5026,24 +5082,23 @@ static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float trans
     in->mirrored = det < 0.0;
     in->box = kdrt_aabb_empty();
     if (tree->bounds.min[0] <= tree->bounds.max[0]) {
-        /* The 8 corners of the tree's box in the world, in double, then widened by 2^-20 of the
-           box's extent and position on each axis: a ray's trip into the tree's space is rounded,
-           and the top level must not cull an instance that ray would hit. */
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (k = 0; k < 8; ++k) {
-            const double c[3] = {(k & 1) ? tree->bounds.max[0] : tree->bounds.min[0],
-                                 (k & 2) ? tree->bounds.max[1] : tree->bounds.min[1],
-                                 (k & 4) ? tree->bounds.max[2] : tree->bounds.min[2]};
-            for (i = 0; i < 3; ++i) {
-                double x = m[4 * i] * c[0] + m[4 * i + 1] * c[1] + m[4 * i + 2] * c[2] + m[4 * i + 3];
-                lo[i] = x < lo[i] ? x : lo[i], hi[i] = x > hi[i] ? x : hi[i];
-            }
+        /* The tree's box in the world from its centre and half extent (Arvo): centre carried by
+           [R | t], half extent by |R|, in double; then widened by 2^-20 of the box's extent and
+           position on each axis: a ray's trip into the tree's space is rounded, and the top
+           level must not cull an instance that ray would hit. */
+        double c[3], e[3];
+        for (j = 0; j < 3; ++j) {
+            c[j] = 0.5 * ((double)tree->bounds.min[j] + tree->bounds.max[j]);
+            e[j] = 0.5 * ((double)tree->bounds.max[j] - tree->bounds.min[j]);
         }
         for (i = 0; i < 3; ++i) {
-            double pad = 9.5367431640625e-7 /* 2^-20 */ * (hi[i] - lo[i] + (fabs(lo[i]) > fabs(hi[i]) ? fabs(lo[i]) : fabs(hi[i])));
-            in->box.min[i] = kdrt__float_down(lo[i] - pad);
-            in->box.max[i] = kdrt__float_up(hi[i] + pad);
-            /* A box beyond float's range has no finite planes to bin or clip by: refused. */
+            const double *row = &m[4 * i];
+            const double x = row[0] * c[0] + row[1] * c[1] + row[2] * c[2] + row[3];
+            const double h = fabs(row[0]) * e[0] + fabs(row[1]) * e[1] + fabs(row[2]) * e[2];
+            const double pad = 9.5367431640625e-7 /* 2^-20 */ * (2.0 * h + fabs(x) + h);
+            in->box.min[i] = kdrt__float_down(x - h - pad);
+            in->box.max[i] = kdrt__float_up(x + h + pad);
+            /* A box beyond float's range has no finite planes to bin by: refused. */
             if (!kdrt__finite(in->box.min[i]) || !kdrt__finite(in->box.max[i]))
                 return KDRT_ERROR_INVALID_TRANSFORM;
         }
@@ -5051,160 +5106,216 @@ static kdrt_result kdrt__place_instance(const kdrt_tree *tree, const float trans
     return KDRT_SUCCESS;
 }
 
-/* ---- the top-level tree over the instances' boxes ---- */
+/* ---- the top level: a binned BVH over the instances' boxes ---- */
 
 /* Its SAH costs, a node step against an instance's (a slab test of its world box, and for the
-   ray that meets it a trip into its space and a walk of its tree), and the references beyond
-   one an instance it may make by splitting the boxes a plane cuts: chosen by measurement on a
-   field of 1,000 overlapping instances (bench/README.md, "Scenes"), where a budget of 3 left the
-   lower nodes big leaves and halved the speed of primary rays. */
+   ray that meets it a trip into its space and a walk of its tree). */
 #define KDRT__LEVEL_TRAVERSAL_COST 1.0
 #define KDRT__LEVEL_INSTANCE_COST 8.0
-#define KDRT__LEVEL_EXTRA_REFS 8u
+#define KDRT__LEVEL_BINS 16u      /* bins an axis, over the centres of a node's boxes */
+#define KDRT__LEVEL_MAX_LEAF 8u   /* more instances are split even when the SAH would not */
+#define KDRT__LEVEL_MAX_DEPTH 64u /* the walk's stack; a node this deep is a leaf */
+/* From this many instances, the top level's subtrees and the instances' placing run on
+   options.scheduler; below it, a task costs more than it saves. */
+#define KDRT__LEVEL_PARALLEL_MIN 2048u
+#define KDRT__LEVEL_TASKS 64u
 
-/* Bins an axis of a node, at most (4 a box below that), the top level's candidate planes at
-   their boundaries. */
-#define KDRT__LEVEL_BINS 32u
+typedef struct kdrt__level_task {
+    uint32_t node, begin, end, children, depth;
+} kdrt__level_task;
 
 typedef struct kdrt__level_builder {
-    const kdrt_allocator *allocator;
-    const kdrt__instance *instances;
-    kdrt__level level;
-    uint32_t node_capacity, ref_capacity;
-    uint32_t extra_refs, max_depth; /* references it may still add; depth limit */
+    kdrt__level_node *nodes;
+    uint32_t *items;
+    const kdrt_aabb *boxes;
+    /* The parallel build's first pass leaves subtrees of at most task_size instances here. */
+    kdrt__level_task *tasks;
+    uint32_t task_count, task_size;
 } kdrt__level_builder;
 
-/* The bin of coordinate x among bins of this width from lo: clamped to the first and the last. */
-static uint32_t kdrt__level_bin(float x, float lo, double width, uint32_t bins)
+static float kdrt__box_centre(const kdrt_aabb *box, int axis)
 {
-    const double f = ((double)x - lo) / width;
-    return f <= 0.0 ? 0u : (f >= bins - 1u ? bins - 1u : (uint32_t)f);
+    return 0.5f * box->min[axis] + 0.5f * box->max[axis]; /* finite for any finite box */
 }
 
-/* The best plane of the node [lo, hi] over items (n > 1) by the SAH: its axis (3: no plane beats
-   a leaf) and position. The candidates are the boundaries of KDRT__LEVEL_BINS equal bins an
-   axis, each box counted by the bins its two faces fall in: O(n) a node (sorting the faces at
-   every node instead built a field of 1,000 instances in 6.1 ms against 3.3, for no faster rays). */
-static uint32_t kdrt__level_plane(const kdrt__level_builder *b, const uint32_t *items, uint32_t n,
-                                  const float lo[3], const float hi[3], float *split)
+/* The bin of centre c among KDRT__LEVEL_BINS over [lo, lo + bins / scale]; in double, so that a
+   box of any finite size has finite bins. The split and the sort into children both call it,
+   so they agree. */
+static uint32_t kdrt__level_bin(float c, double lo, double scale)
 {
-    const double area = kdrt__half_area(lo, hi);
-    const uint32_t bins = n < KDRT__LEVEL_BINS / 4u ? 4u * n : KDRT__LEVEL_BINS;
-    double best = KDRT__LEVEL_INSTANCE_COST * n;
-    uint32_t axis, best_axis = 3, i, k;
-    if (!(area > 0.0)) return 3;
+    const double f = ((double)c - lo) * scale; /* >= 0: c >= lo */
+    return f >= (double)(KDRT__LEVEL_BINS - 1u) ? KDRT__LEVEL_BINS - 1u : (uint32_t)f;
+}
+
+/* Splits items[begin, end) by the binned SAH over their centres: 1 with *mid and the children's
+   boxes, 0 for a leaf. */
+static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box, uint32_t begin,
+                           uint32_t end, uint32_t *mid, kdrt_aabb *left, kdrt_aabb *right)
+{
+    const uint32_t n = end - begin;
+    double best = KDRT__LEVEL_INSTANCE_COST * n * kdrt__half_area(box->min, box->max);
+    double lo[3] = {0.0, 0.0, 0.0}, scale[3] = {0.0, 0.0, 0.0};
+    uint32_t i, k, best_axis = 3, best_bin = 0;
+    float clo[3], chi[3];
+    int axis;
+    for (axis = 0; axis < 3; ++axis) clo[axis] = INFINITY, chi[axis] = -INFINITY;
+    for (i = begin; i < end; ++i)
+        for (axis = 0; axis < 3; ++axis) {
+            const float c = kdrt__box_centre(&b->boxes[b->items[i]], axis);
+            clo[axis] = c < clo[axis] ? c : clo[axis], chi[axis] = c > chi[axis] ? c : chi[axis];
+        }
+    if (n > KDRT__LEVEL_MAX_LEAF) best = INFINITY; /* any split beats a leaf this big */
     for (axis = 0; axis < 3; ++axis) {
-        uint32_t starts[KDRT__LEVEL_BINS], ends[KDRT__LEVEL_BINS], below = 0, ended = 0;
-        const double width = ((double)hi[axis] - lo[axis]) / bins;
-        if (!(width > 0.0)) continue;
-        memset(starts, 0, sizeof starts), memset(ends, 0, sizeof ends);
-        for (i = 0; i < n; ++i) {
-            const kdrt_aabb *box = &b->instances[items[i]].box;
-            starts[kdrt__level_bin(box->min[axis], lo[axis], width, bins)] += 1u;
-            ends[kdrt__level_bin(box->max[axis], lo[axis], width, bins)] += 1u;
+        kdrt_aabb bin_box[KDRT__LEVEL_BINS], below[KDRT__LEVEL_BINS];
+        uint32_t bin_count[KDRT__LEVEL_BINS], below_count = 0;
+        double above_area[KDRT__LEVEL_BINS];
+        kdrt_aabb acc = kdrt_aabb_empty();
+        uint32_t above_count[KDRT__LEVEL_BINS], count = 0;
+        if (!(chi[axis] > clo[axis])) continue;
+        lo[axis] = clo[axis];
+        scale[axis] = KDRT__LEVEL_BINS / ((double)chi[axis] - clo[axis]);
+        for (k = 0; k < KDRT__LEVEL_BINS; ++k) bin_box[k] = kdrt_aabb_empty(), bin_count[k] = 0;
+        for (i = begin; i < end; ++i) {
+            const kdrt_aabb *ib = &b->boxes[b->items[i]];
+            k = kdrt__level_bin(kdrt__box_centre(ib, axis), lo[axis], scale[axis]);
+            bin_count[k] += 1u;
+            bin_box[k] = kdrt_aabb_union(bin_box[k], *ib);
         }
-        for (k = 1; k < bins; ++k) {
-            /* The plane between bins k - 1 and k: the boxes starting in a bin before it lie below
-               it, those ending in one no longer above (as far as the bins tell: the split itself
-               is exact). */
-            const float p = (float)(lo[axis] + width * k);
-            float clo[3], chi[3];
+        /* Above the plane after bin k - 1: bins k and up, swept from the top. */
+        for (k = KDRT__LEVEL_BINS - 1u; k > 0; --k) {
+            acc = kdrt_aabb_union(acc, bin_box[k]), count += bin_count[k];
+            above_area[k] = kdrt__half_area(acc.min, acc.max), above_count[k] = count;
+        }
+        acc = kdrt_aabb_empty();
+        for (k = 1; k < KDRT__LEVEL_BINS; ++k) {
             double cost;
-            below += starts[k - 1], ended += ends[k - 1];
-            if (!(p > lo[axis] && p < hi[axis])) continue;
-            memcpy(clo, lo, sizeof clo), memcpy(chi, hi, sizeof chi);
-            chi[axis] = p;
-            cost = kdrt__half_area(lo, chi) * below;
-            clo[axis] = p, chi[axis] = hi[axis];
-            cost += kdrt__half_area(clo, hi) * (n - ended);
-            cost = KDRT__LEVEL_TRAVERSAL_COST + KDRT__LEVEL_INSTANCE_COST * cost / area;
-            if (cost < best && below + (n - ended) <= n + b->extra_refs)
-                best = cost, best_axis = axis, *split = p;
+            acc = kdrt_aabb_union(acc, bin_box[k - 1]), below_count += bin_count[k - 1];
+            below[k] = acc;
+            if (below_count == 0 || above_count[k] == 0) continue;
+            cost = KDRT__LEVEL_TRAVERSAL_COST * kdrt__half_area(box->min, box->max) +
+                   KDRT__LEVEL_INSTANCE_COST * (kdrt__half_area(acc.min, acc.max) * below_count +
+                                              above_area[k] * above_count[k]);
+            if (cost < best) best = cost, best_axis = (uint32_t)axis, best_bin = k;
+        }
+        if (best_axis == (uint32_t)axis) *left = below[best_bin];
+    }
+    if (best_axis == 3) {
+        uint32_t half;
+        if (n <= KDRT__LEVEL_MAX_LEAF) return 0;
+        /* Every centre at one point: halves in the items' order. */
+        half = begin + n / 2u;
+        *left = *right = kdrt_aabb_empty();
+        for (i = begin; i < end; ++i)
+            if (i < half) *left = kdrt_aabb_union(*left, b->boxes[b->items[i]]);
+            else *right = kdrt_aabb_union(*right, b->boxes[b->items[i]]);
+        *mid = half;
+        return 1;
+    }
+    /* The bins below best_bin first, in place. */
+    i = begin, k = end;
+    while (i < k) {
+        const uint32_t item = b->items[i];
+        if (kdrt__level_bin(kdrt__box_centre(&b->boxes[item], (int)best_axis), lo[best_axis],
+                          scale[best_axis]) < best_bin) {
+            ++i;
+        } else {
+            b->items[i] = b->items[--k];
+            b->items[k] = item;
         }
     }
-    return best_axis;
+    *mid = i;
+    *right = kdrt_aabb_empty();
+    for (i = *mid; i < end; ++i) *right = kdrt_aabb_union(*right, b->boxes[b->items[i]]);
+    return 1;
 }
 
-/* The subtree of node [lo, hi] over items, depth first from node index level.node_count. */
-static kdrt_result kdrt__level_node(kdrt__level_builder *b, const uint32_t *items, uint32_t n,
-                                    const float lo[3], const float hi[3], uint32_t depth)
+/* The subtree of node (its box set) over items[begin, end), its descendants from nodes[children]
+   on: a subtree of n instances has at most 2n - 1 nodes, so each subtree's place follows from
+   its size alone, on any thread. */
+static void kdrt__level_subtree(kdrt__level_builder *b, uint32_t node, uint32_t begin, uint32_t end,
+                              uint32_t children, uint32_t depth)
 {
-    const uint32_t node = b->level.node_count;
-    uint32_t axis = 3, i, nb = 0, na = 0, *sides;
-    float split = 0.0f, clo[3], chi[3];
-    kdrt_result r = kdrt__reserve(b->allocator, (void **)&b->level.nodes, &b->node_capacity,
-                                  node + 1u, sizeof(kdrt__node));
-    if (r != KDRT_SUCCESS) return r;
-    if (node >= KDRT_MAX_TRIANGLES) return KDRT_ERROR_SIZE_OVERFLOW;
-    b->level.node_count += 1;
-    if (n > 1 && depth < b->max_depth) axis = kdrt__level_plane(b, items, n, lo, hi, &split);
-    if (axis == 3) {
-        r = kdrt__reserve(b->allocator, (void **)&b->level.refs, &b->ref_capacity,
-                          b->level.ref_count + n, sizeof(uint32_t));
-        if (r != KDRT_SUCCESS) return r;
-        if (n) memcpy(b->level.refs + b->level.ref_count, items, (size_t)n * sizeof(uint32_t));
-        b->level.nodes[node] = kdrt__node_leaf(b->level.ref_count, n);
-        b->level.ref_count += n;
-        return KDRT_SUCCESS;
+    kdrt__level_node *nd = &b->nodes[node];
+    uint32_t mid;
+    if (b->tasks && end - begin <= b->task_size && b->task_count < KDRT__LEVEL_TASKS) {
+        kdrt__level_task *t = &b->tasks[b->task_count++];
+        t->node = node, t->begin = begin, t->end = end, t->children = children, t->depth = depth;
+        return;
     }
-    /* Below: boxes starting before the plane, and flat ones lying in it; above: boxes ending
-       after it. */
-    sides = (uint32_t *)kdrt__alloc(b->allocator, 2 * (size_t)n * sizeof(uint32_t));
-    if (!sides) return KDRT_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < n; ++i) {
-        const kdrt_aabb *box = &b->instances[items[i]].box;
-        if (box->min[axis] < split || box->max[axis] <= split) sides[nb++] = items[i];
-        if (box->max[axis] > split) sides[n + na++] = items[i];
+    if (end - begin < 2u || depth + 1u >= KDRT__LEVEL_MAX_DEPTH ||
+        !kdrt__level_split(b, &nd->box, begin, end, &mid, &b->nodes[children].box,
+                         &b->nodes[children + 1u].box)) {
+        nd->first = begin, nd->count = end - begin;
+        return;
     }
-    /* Flat boxes in the plane, which the sweep counted above, make at most this many more. */
-    b->extra_refs = nb + na - n < b->extra_refs ? b->extra_refs - (nb + na - n) : 0u;
-    memcpy(clo, lo, sizeof clo), memcpy(chi, hi, sizeof chi);
-    chi[axis] = split;
-    r = kdrt__level_node(b, sides, nb, lo, chi, depth + 1u);
-    if (r == KDRT_SUCCESS) {
-        const uint32_t above = b->level.node_count;
-        clo[axis] = split;
-        r = kdrt__level_node(b, sides + n, na, clo, hi, depth + 1u);
-        if (r == KDRT_SUCCESS) b->level.nodes[node] = kdrt__node_inner(axis, split, above);
-    }
-    kdrt__free(b->allocator, sides);
-    return r;
+    nd->first = children, nd->count = 0;
+    kdrt__level_subtree(b, children, begin, mid, children + 2u, depth + 1u);
+    kdrt__level_subtree(b, children + 1u, mid, end, children + 2u * (mid - begin), depth + 1u);
 }
 
-/* The top level over n instances (those with an empty box left out); *out stays untouched on
-   failure. */
-static kdrt_result kdrt__build_level(const kdrt_allocator *a, const kdrt__instance *instances,
-                                     uint32_t n, kdrt__level *out)
+static void kdrt__level_task_run(void *data, uint32_t index)
 {
+    kdrt__level_builder b = *(const kdrt__level_builder *)data;
+    const kdrt__level_task t = b.tasks[index];
+    b.tasks = NULL;
+    kdrt__level_subtree(&b, t.node, t.begin, t.end, t.children, t.depth);
+}
+
+/* The arena for n instances: a new one to swap in (*fresh), or NULL in *fresh when the current
+   one fits. */
+static kdrt_result kdrt__level_reserve(const kdrt_scene *sc, uint32_t n, void **fresh, size_t *bytes)
+{
+    size_t nodes, need;
+    *fresh = NULL;
+    if (!kdrt__mul_size(2u * (size_t)n, sizeof(kdrt__level_node), &nodes) ||
+        !kdrt__mul_size(n, sizeof(kdrt_aabb) + sizeof(uint32_t), &need) || need > (size_t)-1 - nodes)
+        return KDRT_ERROR_SIZE_OVERFLOW;
+    *bytes = need + nodes;
+    if (*bytes <= sc->top.arena_bytes) return KDRT_SUCCESS;
+    *fresh = kdrt__alloc(&sc->options.allocator, *bytes);
+    return *fresh ? KDRT_SUCCESS : KDRT_ERROR_OUT_OF_MEMORY;
+}
+
+/* Builds the top level over the instances in the arena (reserved for their count): those that
+   no query can see (an empty box, mask 0 or disabled) are left out. Cannot fail. */
+static void kdrt__level_build(kdrt_scene *sc)
+{
+    const uint32_t n = sc->now.instance_count;
+    const kdrt__instance *in = sc->now.instances;
+    kdrt__level *top = &sc->top;
+    kdrt__level_task tasks[KDRT__LEVEL_TASKS];
     kdrt__level_builder b;
-    uint32_t *items, i, count = 0;
-    kdrt_result r;
-    memset(&b, 0, sizeof b);
-    b.allocator = a, b.instances = instances;
-    b.level.bounds = kdrt_aabb_empty();
-    items = (uint32_t *)kdrt__alloc(a, (size_t)n * sizeof(uint32_t));
-    if (!items) return KDRT_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < n; ++i)
-        if (instances[i].box.min[0] <= instances[i].box.max[0]) {
-            items[count++] = i;
-            b.level.bounds = kdrt_aabb_union(b.level.bounds, instances[i].box);
+    kdrt_aabb seen = kdrt_aabb_empty(); /* the boxes a query may see */
+    uint32_t i, count = 0;
+    top->bounds = kdrt_aabb_empty();
+    top->nodes = NULL;
+    if (n == 0) return;
+    top->nodes = (kdrt__level_node *)top->arena;
+    top->boxes = (kdrt_aabb *)(top->nodes + 2u * (size_t)n);
+    top->items = (uint32_t *)(top->boxes + n);
+    for (i = 0; i < n; ++i) {
+        top->boxes[i] = in[i].box;
+        top->bounds = kdrt_aabb_union(top->bounds, in[i].box); /* the scene's box holds them all */
+        if (in[i].mask && in[i].box.min[0] <= in[i].box.max[0]) {
+            top->items[count++] = i;
+            seen = kdrt_aabb_union(seen, in[i].box);
         }
-    b.extra_refs = KDRT__LEVEL_EXTRA_REFS * count;
-    b.max_depth = kdrt__default_depth(count);
-    if (b.max_depth > KDRT_MAX_DEPTH) b.max_depth = KDRT_MAX_DEPTH;
-    if (count == 0) r = KDRT_SUCCESS; /* no nodes: every ray misses the instances */
-    else r = kdrt__level_node(&b, items, count, b.level.bounds.min, b.level.bounds.max, 0);
-    kdrt__free(a, items);
-    if (r != KDRT_SUCCESS) {
-        kdrt__free(a, b.level.nodes);
-        kdrt__free(a, b.level.refs);
-        return r;
     }
-    *out = b.level;
-    return KDRT_SUCCESS;
+    if (count == 0) {
+        top->nodes = NULL;
+        return;
+    }
+    b.nodes = top->nodes, b.items = top->items, b.boxes = top->boxes;
+    b.tasks = NULL, b.task_count = 0, b.task_size = 0;
+    if (count >= KDRT__LEVEL_PARALLEL_MIN && sc->options.scheduler.run)
+        b.tasks = tasks, b.task_size = count / 16u;
+    b.nodes[0].box = seen;
+    kdrt__level_subtree(&b, 0, 0, count, 1, 0);
+    if (b.task_count)
+        sc->options.scheduler.run(sc->options.scheduler.user, kdrt__level_task_run, &b, b.task_count);
 }
 
-/* ---- building, moving, freeing ---- */
+/* ---- the entries: finding, laying out, committing ---- */
 
 static int kdrt__geometry_order(const void *a, const void *b)
 {
@@ -5212,84 +5323,252 @@ static int kdrt__geometry_order(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The entry with this ID, or NULL: a binary search of the sorted entries. */
-static const kdrt_geometry *kdrt__find_entry(const kdrt_scene *scene, uint32_t id)
+/* The first of the count entries (sorted by ID) whose ID is not below id. */
+static uint32_t kdrt__entry_index(const kdrt_geometry *entries, uint32_t count, uint32_t id)
 {
-    uint32_t lo = 0, hi = scene->entry_count;
+    uint32_t lo = 0, hi = count;
     while (lo < hi) {
         const uint32_t mid = lo + (hi - lo) / 2u;
-        if (scene->entries[mid].id < id) lo = mid + 1u;
+        if (entries[mid].id < id) lo = mid + 1u;
         else hi = mid;
     }
-    return lo < scene->entry_count && scene->entries[lo].id == id ? &scene->entries[lo] : NULL;
+    return lo;
 }
 
-/* The instance with this ID, or NULL. */
+/* The committed entry with this ID, or NULL. */
+static const kdrt_geometry *kdrt__find_entry(const kdrt_scene *scene, uint32_t id)
+{
+    const uint32_t i = kdrt__entry_index(scene->now.entries, scene->now.entry_count, id);
+    return i < scene->now.entry_count && scene->now.entries[i].id == id ? &scene->now.entries[i]
+                                                                        : NULL;
+}
+
+/* The entry with this ID from the next commit on, or NULL. */
+static kdrt_geometry *kdrt__find_next(kdrt_scene *scene, uint32_t id)
+{
+    const uint32_t i = kdrt__entry_index(scene->next, scene->next_count, id);
+    return i < scene->next_count && scene->next[i].id == id ? &scene->next[i] : NULL;
+}
+
+/* The committed instance with this ID, or NULL. */
 static const kdrt__instance *kdrt__find_instance(const kdrt_scene *scene, uint32_t id)
 {
     const kdrt_geometry *e = kdrt__find_entry(scene, id);
     if (!e || e->type != KDRT_GEOMETRY_INSTANCE) return NULL;
-    return &scene->instances[scene->slot[e - scene->entries]];
+    return &scene->now.instances[scene->now.slot[e - scene->now.entries]];
+}
+
+static void kdrt__layout_free(const kdrt_allocator *a, kdrt__layout *l)
+{
+    kdrt__free(a, l->entries);
+    kdrt__free(a, l->slot);
+    kdrt__free(a, l->parts);
+    kdrt__free(a, l->instances);
+    memset(l, 0, sizeof *l);
 }
 
 KDRT_API void kdrt_scene_free(kdrt_scene *scene)
 {
     kdrt_allocator a;
     if (!scene) return;
-    a = scene->allocator;
+    a = scene->options.allocator;
     kdrt_tree_free(scene->meshes);
-    kdrt__free(&a, scene->top.nodes);
-    kdrt__free(&a, scene->top.refs);
-    kdrt__free(&a, scene->entries);
-    kdrt__free(&a, scene->slot);
-    kdrt__free(&a, scene->parts);
-    kdrt__free(&a, scene->instances);
-    kdrt__free(&a, scene->pending);
+    kdrt__layout_free(&a, &scene->now);
+    kdrt__free(&a, scene->top.arena);
+    kdrt__free(&a, scene->next);
     kdrt__free(&a, scene);
 }
 
-/* Checks the sorted entries and lays out the meshes' parts and the instances; report names the
-   geometry at fault. */
-static kdrt_result kdrt__scene_entries(kdrt_scene *sc, kdrt_build_report *report)
+/* A query sees a geometry through this mask: 0 when it is disabled. */
+static uint32_t kdrt__entry_mask(const kdrt_geometry *e)
 {
-    uint32_t i, meshes = 0, instances = 0, triangles = 0;
-    for (i = 0; i < sc->entry_count; ++i) {
-        const kdrt_geometry *e = &sc->entries[i];
+    return (e->flags & KDRT_GEOMETRY_DISABLED) ? 0u : e->mask;
+}
+
+/* One entry checked as kdrt_scene_build() and kdrt_scene_attach() take it, the instance placed
+   in *in (when it is one and in is not NULL). */
+static kdrt_result kdrt__check_entry(const kdrt_geometry *e, kdrt_triangles *view,
+                                     kdrt__instance *in)
+{
+    kdrt__instance scratch;
+    if (e->id == KDRT_INVALID_ID) return KDRT_ERROR_INVALID_GEOMETRY_ID;
+    if (e->flags & ~(uint32_t)KDRT_GEOMETRY_DISABLED) return KDRT_ERROR_INVALID_OPTION;
+    if (e->type == KDRT_GEOMETRY_MESH) return kdrt__check_view(&e->mesh, view);
+    if (e->type != KDRT_GEOMETRY_INSTANCE) return KDRT_ERROR_INVALID_OPTION;
+    if (!e->tree) return KDRT_ERROR_NULL_ARGUMENT;
+    return kdrt__place_instance(e->tree, e->transform, in ? in : &scratch);
+}
+
+/* The layout of the entries to come (next): each checked, report naming the one at fault; an
+   instance whose tree and transform are as committed keeps its placing. */
+static kdrt_result kdrt__lay_out(const kdrt_scene *sc, kdrt__layout *l, kdrt_build_report *report)
+{
+    const kdrt_allocator *a = &sc->options.allocator;
+    uint32_t i, old = 0, meshes = 0, triangles = 0;
+    memset(l, 0, sizeof *l);
+    for (i = 0; i < sc->next_count; ++i) meshes += sc->next[i].type == KDRT_GEOMETRY_MESH;
+    l->entries = (kdrt_geometry *)kdrt__alloc(a, (size_t)sc->next_count * sizeof *l->entries);
+    l->slot = (uint32_t *)kdrt__alloc(a, (size_t)sc->next_count * sizeof *l->slot);
+    l->parts = (kdrt__part *)kdrt__alloc(a, (size_t)meshes * sizeof *l->parts);
+    l->instances = (kdrt__instance *)kdrt__alloc(a, (size_t)(sc->next_count - meshes) *
+                                                        sizeof *l->instances);
+    if (!l->entries || !l->slot || !l->parts || !l->instances) {
+        kdrt__layout_free(a, l);
+        return KDRT_ERROR_OUT_OF_MEMORY;
+    }
+    if (sc->next_count) memcpy(l->entries, sc->next, (size_t)sc->next_count * sizeof *l->entries);
+    l->entry_count = sc->next_count;
+    for (i = 0; i < l->entry_count; ++i) {
+        const kdrt_geometry *e = &l->entries[i];
         kdrt_result r = KDRT_SUCCESS;
         if (report) report->invalid_geometry = e->id;
-        if (e->id == KDRT_INVALID_ID || (i > 0 && e->id == sc->entries[i - 1].id))
-            return KDRT_ERROR_INVALID_GEOMETRY_ID;
-        if (e->type == KDRT_GEOMETRY_MESH) {
-            kdrt__part *part = &sc->parts[meshes];
-            r = kdrt__check_view(&e->mesh, &part->mesh);
+        if (i > 0 && e->id == l->entries[i - 1].id) r = KDRT_ERROR_INVALID_GEOMETRY_ID;
+        else if (e->type == KDRT_GEOMETRY_MESH) {
+            kdrt__part *part = &l->parts[l->part_count];
+            r = kdrt__check_entry(e, &part->mesh, NULL);
             if (r == KDRT_SUCCESS && part->mesh.triangle_count > KDRT_MAX_TRIANGLES - triangles)
                 r = KDRT_ERROR_SIZE_OVERFLOW;
-            if (r != KDRT_SUCCESS) return r;
-            part->first = triangles, part->id = e->id, part->mask = e->mask;
+            part->first = triangles, part->id = e->id, part->mask = kdrt__entry_mask(e);
             triangles += part->mesh.triangle_count;
-            sc->slot[i] = meshes++;
-        } else if (e->type == KDRT_GEOMETRY_INSTANCE) {
-            kdrt__instance *in = &sc->instances[instances];
-            if (!e->tree) return KDRT_ERROR_NULL_ARGUMENT;
-            r = kdrt__place_instance(e->tree, e->transform, in);
-            if (r != KDRT_SUCCESS) return r;
-            in->id = e->id, in->mask = e->mask;
-            memcpy(&sc->pending[12 * (size_t)instances], e->transform, sizeof e->transform);
-            sc->slot[i] = instances++;
+            l->slot[i] = l->part_count++;
         } else {
-            return KDRT_ERROR_INVALID_OPTION;
+            kdrt__instance *in = &l->instances[l->instance_count];
+            const kdrt__instance *was = sc->now.instances;
+            while (old < sc->now.instance_count && was[old].id < e->id) ++old;
+            if (e->type == KDRT_GEOMETRY_INSTANCE && old < sc->now.instance_count &&
+                was[old].id == e->id && was[old].tree == e->tree &&
+                memcmp(kdrt__find_entry(sc, e->id)->transform, e->transform,
+                       sizeof e->transform) == 0)
+                *in = was[old]; /* placed as committed: the checks passed then */
+            else r = kdrt__check_entry(e, NULL, in);
+            in->id = e->id, in->mask = kdrt__entry_mask(e);
+            l->slot[i] = l->instance_count++;
+        }
+        if (r != KDRT_SUCCESS) {
+            kdrt__layout_free(a, l);
+            return r;
         }
     }
     if (report) report->invalid_geometry = KDRT_INVALID_ID;
-    sc->instance_count = instances;
     return KDRT_SUCCESS;
 }
 
-/* The scene's box: its meshes' and its instances'. */
-static void kdrt__scene_bounds(kdrt_scene *sc)
+/* A new tree over the layout's meshes (NULL: none), report naming a bad triangle's mesh. */
+static kdrt_result kdrt__build_meshes(const kdrt_scene *sc, const kdrt__layout *l,
+                                      kdrt_tree **out, kdrt_build_report *report)
 {
-    sc->bounds = sc->meshes ? sc->meshes->bounds : kdrt_aabb_empty();
-    sc->bounds = kdrt_aabb_union(sc->bounds, sc->top.bounds);
+    kdrt__meshes m;
+    kdrt_result r;
+    *out = NULL;
+    if (l->part_count == 0) return KDRT_SUCCESS;
+    m.parts = l->parts, m.count = l->part_count;
+    m.triangles = l->parts[m.count - 1].first + l->parts[m.count - 1].mesh.triangle_count;
+    *out = kdrt__tree_new(&sc->options, &m);
+    if (!*out) return KDRT_ERROR_OUT_OF_MEMORY;
+    r = kdrt__build_tree(*out, &sc->options, report); /* frees it on failure */
+    if (r != KDRT_SUCCESS) *out = NULL;
+    if (report && report->invalid_triangle != KDRT_INVALID_ID) {
+        /* The tree numbers triangles across the meshes: name the mesh and its own, for a
+           failure or the first triangle skipped. */
+        const kdrt__part *part = kdrt__part_of(&m, report->invalid_triangle);
+        report->invalid_triangle -= part->first;
+        report->invalid_geometry = part->id;
+    }
+    return r;
+}
+
+/* Places the moved instances among entries [begin, end) of a commit that keeps the entries. */
+static void kdrt__place_moved(kdrt_scene *sc, uint32_t begin, uint32_t end)
+{
+    uint32_t i;
+    for (i = begin; i < end; ++i) {
+        kdrt_geometry *e = &sc->now.entries[i];
+        kdrt__instance *in;
+        kdrt_result r;
+        if (e->type != KDRT_GEOMETRY_INSTANCE ||
+            memcmp(e->transform, sc->next[i].transform, sizeof e->transform) == 0)
+            continue;
+        memcpy(e->transform, sc->next[i].transform, sizeof e->transform);
+        in = &sc->now.instances[sc->now.slot[i]];
+        r = kdrt__place_instance(in->tree, e->transform, in);
+        KDRT_ASSERT(r == KDRT_SUCCESS); /* checked by kdrt_scene_set_transform */
+        (void)r;
+    }
+}
+
+static void kdrt__place_moved_task(void *data, uint32_t chunk)
+{
+    kdrt_scene *sc = (kdrt_scene *)data;
+    kdrt__place_moved(sc, kdrt__chunk_start(sc->now.entry_count, chunk),
+                      kdrt__chunk_start(sc->now.entry_count, chunk + 1u));
+}
+
+/* The commit: the entries laid out anew when they changed (the mesh tree rebuilt when its
+   meshes did), else the moved instances placed again; then the top level. Everything that can
+   fail comes first, so that a failure leaves the scene as it was. */
+static kdrt_result kdrt__commit(kdrt_scene *sc, kdrt_build_report *report)
+{
+    const kdrt_allocator *a = &sc->options.allocator;
+    kdrt__layout l;
+    kdrt_tree *meshes = NULL;
+    void *arena;
+    size_t bytes;
+    uint32_t i;
+    kdrt_result r;
+    memset(&l, 0, sizeof l);
+    if (!sc->entries_changed && !sc->moved) return KDRT_SUCCESS; /* nothing to do */
+    if (sc->entries_changed) {
+        r = kdrt__lay_out(sc, &l, report);
+        if (r == KDRT_SUCCESS && sc->meshes_changed) r = kdrt__build_meshes(sc, &l, &meshes, report);
+        if (r != KDRT_SUCCESS) {
+            kdrt__layout_free(a, &l);
+            return r;
+        }
+    }
+    r = kdrt__level_reserve(sc, sc->entries_changed ? l.instance_count : sc->now.instance_count,
+                          &arena, &bytes);
+    if (r != KDRT_SUCCESS) {
+        kdrt_tree_free(meshes);
+        kdrt__layout_free(a, &l);
+        return r;
+    }
+    /* Nothing fails from here on. */
+    if (arena) {
+        kdrt__free(a, sc->top.arena);
+        sc->top.arena = arena, sc->top.arena_bytes = bytes;
+    }
+    if (sc->entries_changed) {
+        kdrt__layout_free(a, &sc->now);
+        sc->now = l;
+        if (sc->meshes_changed) {
+            kdrt_tree_free(sc->meshes);
+            sc->meshes = meshes;
+        } else if (sc->meshes) {
+            /* The same meshes in the same order: only their masks may have changed. */
+            sc->meshes->meshes.parts = sc->now.parts;
+            sc->meshes->masks_full = 1;
+            for (i = 0; i < sc->now.part_count; ++i)
+                sc->meshes->masks_full &= sc->now.parts[i].mask == 0xFFFFFFFFu;
+        }
+    } else if (sc->now.instance_count >= KDRT__LEVEL_PARALLEL_MIN && sc->options.scheduler.run) {
+        sc->options.scheduler.run(sc->options.scheduler.user, kdrt__place_moved_task, sc,
+                                  KDRT__CHUNKS);
+    } else {
+        kdrt__place_moved(sc, 0, sc->now.entry_count);
+    }
+    kdrt__level_build(sc);
+    sc->bounds = kdrt_aabb_union(sc->meshes ? sc->meshes->bounds : kdrt_aabb_empty(),
+                                 sc->top.bounds);
+    sc->entries_changed = sc->meshes_changed = sc->moved = 0;
+    return KDRT_SUCCESS;
+}
+
+/* Room in next for one more entry. */
+static kdrt_result kdrt__next_reserve(kdrt_scene *sc)
+{
+    if (sc->next_count == KDRT_INVALID_ID) return KDRT_ERROR_SIZE_OVERFLOW;
+    return kdrt__reserve(&sc->options.allocator, (void **)&sc->next, &sc->next_capacity,
+                         sc->next_count + 1u, sizeof *sc->next);
 }
 
 KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t count,
@@ -5298,7 +5577,6 @@ KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t 
 {
     kdrt_build_options opt = options ? *options : kdrt_default_build_options();
     kdrt_scene *sc;
-    uint32_t i, meshes = 0;
     kdrt_result r;
 
     kdrt__report_init(report);
@@ -5310,98 +5588,95 @@ KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t 
     sc = (kdrt_scene *)kdrt__alloc(&opt.allocator, sizeof *sc);
     if (!sc) return KDRT_ERROR_OUT_OF_MEMORY;
     memset(sc, 0, sizeof *sc);
-    sc->allocator = opt.allocator;
-    sc->top.bounds = kdrt_aabb_empty();
-    for (i = 0; i < count; ++i) meshes += geometries[i].type == KDRT_GEOMETRY_MESH;
-    sc->entries = (kdrt_geometry *)kdrt__alloc(&opt.allocator, (size_t)count * sizeof *sc->entries);
-    sc->slot = (uint32_t *)kdrt__alloc(&opt.allocator, (size_t)count * sizeof *sc->slot);
-    sc->parts = (kdrt__part *)kdrt__alloc(&opt.allocator, (size_t)meshes * sizeof *sc->parts);
-    sc->instances = (kdrt__instance *)kdrt__alloc(&opt.allocator,
-                                                 (size_t)(count - meshes) * sizeof *sc->instances);
-    sc->pending = (float *)kdrt__alloc(&opt.allocator, 12 * (size_t)(count - meshes) * sizeof(float));
-    if (!sc->entries || !sc->slot || !sc->parts || !sc->instances || !sc->pending) {
-        kdrt_scene_free(sc);
-        return KDRT_ERROR_OUT_OF_MEMORY;
+    sc->options = opt;
+    sc->top.bounds = sc->bounds = kdrt_aabb_empty();
+    /* The scene is its first commit: every entry to come, then laid out and built. */
+    r = kdrt__reserve(&opt.allocator, (void **)&sc->next, &sc->next_capacity, count,
+                      sizeof *sc->next);
+    if (r == KDRT_SUCCESS) {
+        if (count) memcpy(sc->next, geometries, (size_t)count * sizeof *sc->next);
+        sc->next_count = count;
+        /* In ID order, so that the mesh tree's triangle numbers order hits as the tie rule does. */
+        if (count > 1) qsort(sc->next, count, sizeof *sc->next, kdrt__geometry_order);
+        sc->entries_changed = sc->meshes_changed = 1;
+        r = kdrt__commit(sc, report);
     }
-    if (count) memcpy(sc->entries, geometries, (size_t)count * sizeof *sc->entries);
-    sc->entry_count = count;
-    /* In ID order, so that the mesh tree's triangle numbers order hits as the tie rule does. */
-    qsort(sc->entries, count, sizeof *sc->entries, kdrt__geometry_order);
-    r = kdrt__scene_entries(sc, report);
-    if (r == KDRT_SUCCESS && meshes > 0) {
-        kdrt__meshes m;
-        m.parts = sc->parts, m.count = meshes;
-        m.triangles = sc->parts[meshes - 1].first + sc->parts[meshes - 1].mesh.triangle_count;
-        sc->meshes = kdrt__tree_new(&opt, &m);
-        if (!sc->meshes) r = KDRT_ERROR_OUT_OF_MEMORY;
-        else r = kdrt__build_tree(sc->meshes, &opt, report); /* frees it on failure */
-        if (r != KDRT_SUCCESS) sc->meshes = NULL;
-        if (report && report->invalid_triangle != KDRT_INVALID_ID) {
-            /* The tree numbers triangles across the meshes: name the mesh and its own, for a
-               failure or the first triangle skipped. */
-            const kdrt__part *part = kdrt__part_of(&m, report->invalid_triangle);
-            report->invalid_triangle -= part->first;
-            report->invalid_geometry = part->id;
-        }
-    }
-    if (r == KDRT_SUCCESS) r = kdrt__build_level(&sc->allocator, sc->instances, sc->instance_count,
-                                                 &sc->top);
     if (r != KDRT_SUCCESS) {
         kdrt_scene_free(sc);
         return r;
     }
-    kdrt__scene_bounds(sc);
     *out_scene = sc;
-    return KDRT_SUCCESS;
-}
-
-KDRT_API kdrt_result kdrt_scene_set_transform(kdrt_scene *scene, uint32_t id,
-                                              const float transform[12])
-{
-    const kdrt__instance *in;
-    kdrt__instance check;
-    kdrt_result r;
-    if (!scene || !transform) return KDRT_ERROR_NULL_ARGUMENT;
-    in = kdrt__find_instance(scene, id);
-    if (!in) return KDRT_ERROR_INVALID_GEOMETRY_ID;
-    r = kdrt__place_instance(in->tree, transform, &check);
-    if (r != KDRT_SUCCESS) return r;
-    memcpy(&scene->pending[12 * (size_t)(in - scene->instances)], transform, 12 * sizeof(float));
     return KDRT_SUCCESS;
 }
 
 KDRT_API kdrt_result kdrt_scene_commit(kdrt_scene *scene)
 {
-    const size_t n = scene ? scene->instance_count : 0u;
-    kdrt__instance *next;
-    kdrt__level level;
-    uint32_t i;
-    kdrt_result r;
     if (!scene) return KDRT_ERROR_NULL_ARGUMENT;
-    /* Built aside and swapped in, so that a failure leaves the scene as it was. */
-    next = (kdrt__instance *)kdrt__alloc(&scene->allocator, n * sizeof *next);
-    if (!next) return KDRT_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < n; ++i) {
-        next[i] = scene->instances[i];
-        r = kdrt__place_instance(next[i].tree, &scene->pending[12 * (size_t)i], &next[i]);
-        KDRT_ASSERT(r == KDRT_SUCCESS); /* checked by kdrt_scene_set_transform */
-        (void)r;
-    }
-    r = kdrt__build_level(&scene->allocator, next, (uint32_t)n, &level);
-    if (r != KDRT_SUCCESS) {
-        kdrt__free(&scene->allocator, next);
-        return r;
-    }
-    kdrt__free(&scene->allocator, scene->instances);
-    kdrt__free(&scene->allocator, scene->top.nodes);
-    kdrt__free(&scene->allocator, scene->top.refs);
-    scene->instances = next;
-    scene->top = level;
-    for (i = 0; i < scene->entry_count; ++i)
-        if (scene->entries[i].type == KDRT_GEOMETRY_INSTANCE)
-            memcpy(scene->entries[i].transform, &scene->pending[12 * (size_t)scene->slot[i]],
-                   12 * sizeof(float));
-    kdrt__scene_bounds(scene);
+    return kdrt__commit(scene, NULL);
+}
+
+KDRT_API kdrt_result kdrt_scene_set_transform(kdrt_scene *scene, uint32_t id,
+                                              const float transform[12])
+{
+    kdrt_geometry *e;
+    kdrt__instance check;
+    kdrt_result r;
+    if (!scene || !transform) return KDRT_ERROR_NULL_ARGUMENT;
+    e = kdrt__find_next(scene, id);
+    if (!e || e->type != KDRT_GEOMETRY_INSTANCE) return KDRT_ERROR_INVALID_GEOMETRY_ID;
+    r = kdrt__place_instance(e->tree, transform, &check);
+    if (r != KDRT_SUCCESS) return r;
+    memcpy(e->transform, transform, sizeof e->transform);
+    scene->moved = 1;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_attach(kdrt_scene *scene, const kdrt_geometry *geometry)
+{
+    kdrt_triangles view;
+    uint32_t at;
+    kdrt_result r;
+    if (!scene || !geometry) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__check_entry(geometry, &view, NULL);
+    if (r != KDRT_SUCCESS) return r;
+    at = kdrt__entry_index(scene->next, scene->next_count, geometry->id);
+    if (at < scene->next_count && scene->next[at].id == geometry->id)
+        return KDRT_ERROR_INVALID_GEOMETRY_ID;
+    r = kdrt__next_reserve(scene);
+    if (r != KDRT_SUCCESS) return r;
+    memmove(&scene->next[at + 1u], &scene->next[at],
+            (size_t)(scene->next_count - at) * sizeof *scene->next);
+    scene->next[at] = *geometry;
+    scene->next_count += 1u;
+    scene->entries_changed = 1;
+    scene->meshes_changed |= geometry->type == KDRT_GEOMETRY_MESH;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_detach(kdrt_scene *scene, uint32_t id)
+{
+    kdrt_geometry *e;
+    uint32_t at;
+    if (!scene) return KDRT_ERROR_NULL_ARGUMENT;
+    e = kdrt__find_next(scene, id);
+    if (!e) return KDRT_ERROR_INVALID_GEOMETRY_ID;
+    at = (uint32_t)(e - scene->next);
+    scene->entries_changed = 1;
+    scene->meshes_changed |= e->type == KDRT_GEOMETRY_MESH;
+    memmove(e, e + 1, (size_t)(scene->next_count - at - 1u) * sizeof *e);
+    scene->next_count -= 1u;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_enable(kdrt_scene *scene, uint32_t id, int enabled)
+{
+    kdrt_geometry *e;
+    if (!scene) return KDRT_ERROR_NULL_ARGUMENT;
+    e = kdrt__find_next(scene, id);
+    if (!e) return KDRT_ERROR_INVALID_GEOMETRY_ID;
+    if (enabled) e->flags &= ~(uint32_t)KDRT_GEOMETRY_DISABLED;
+    else e->flags |= (uint32_t)KDRT_GEOMETRY_DISABLED;
+    scene->entries_changed = 1;
     return KDRT_SUCCESS;
 }
 
@@ -5443,59 +5718,84 @@ static void kdrt__name_mesh_hit(const kdrt_tree *meshes, kdrt_hit *hit)
     hit->triangle -= part->first, hit->geometry = part->id;
 }
 
-/* The walk of the top level: each instance the ray's range reaches and its mask lets through is
-   walked in its own space. Nearest hit: *best holds the hit so far (or a miss whose t is the
-   range's end) and takes nearer ones; any_hit: 1 on the first; list: its hits go there. */
+/* One instance of the walk: skipped unless its mask lets the query through and the ray meets
+   its world box before the best hit (a slab test is far cheaper than carrying the ray into its
+   space), else walked there. As kdrt__walk_instances, and 2 for an any-hit found. */
+static int kdrt__walk_instance(const kdrt__instance *in, const kdrt_ray *ray,
+                               const kdrt_query *query, kdrt__ray_setup *s, kdrt_hit *best,
+                               int any_hit, kdrt__hit_list *list)
+{
+    kdrt__rules storage;
+    const kdrt__rules *rules;
+    kdrt_ray object;
+    kdrt_hit h;
+    float enter, exit;
+    if (!(in->mask & (query ? query->mask : 0xFFFFFFFFu))) return 0;
+    s->tmax = best->t;
+    if (!kdrt__clip_to_box(&in->box, s, &enter, &exit)) return 0;
+    rules = kdrt__rules_for(query, ray, in->tree, in->id, in->mirrored, list != NULL, &storage);
+    kdrt__object_ray(in, ray, best->t, &object);
+    if (!kdrt__walk(in->tree, &object, rules, &h, any_hit, list)) {
+        best->t = kdrt__list_bound(list, best->t);
+        return 0;
+    }
+    if (any_hit) return 2;
+    h.geometry = h.instance = in->id, h.cell = 0;
+    if (best->triangle != KDRT_INVALID_ID && !kdrt__hit_before(&h, best)) return 0;
+    *best = h;
+    return 1;
+}
+
+/* The walk of the top level, nearer child first: each instance the ray's range reaches and its
+   mask lets through is walked in its own space. Nearest hit: *best holds the hit so far (or a
+   miss whose t is the range's end) and takes nearer ones; any_hit: 1 on the first; list: its
+   hits go there. */
 static int kdrt__walk_instances(const kdrt_scene *sc, const kdrt_ray *ray, const kdrt_query *query,
                                 kdrt_hit *best, int any_hit, kdrt__hit_list *list)
 {
-    kdrt__todo stack[KDRT_MAX_DEPTH];
-    uint32_t sp = 0, node = 0, tested[KDRT__MAILBOX], i;
-    const uint32_t mask = query ? query->mask : 0xFFFFFFFFu;
+    const kdrt__level_node *nodes = sc->top.nodes;
+    kdrt__todo stack[KDRT__LEVEL_MAX_DEPTH];
+    uint32_t sp = 0, node = 0, i;
     kdrt__ray_setup s;
     float t0, t1;
     int found = 0;
-    if (sc->top.node_count == 0 || !kdrt__setup_ray(ray, &s) ||
-        !kdrt__clip_to_box(&sc->top.bounds, &s, &t0, &t1))
-        return 0;
-    memset(tested, 0xFF, sizeof tested);
+    if (!nodes || !kdrt__setup_ray(ray, &s)) return 0;
+    s.tmax = best->t;
+    if (!kdrt__clip_to_box(&nodes[0].box, &s, &t0, &t1)) return 0;
     for (;;) {
-        const kdrt__node *n = &sc->top.nodes[node];
-        if (!kdrt__node_is_leaf(n)) {
-            node = kdrt__descend(n, node, &s, &t0, &t1, stack, &sp);
-            continue;
-        }
-        for (i = 0; i < kdrt__node_count(n); ++i) {
-            const uint32_t index = sc->top.refs[n->u.first + i];
-            const kdrt__instance *in = &sc->instances[index];
-            kdrt__rules storage;
-            const kdrt__rules *rules;
-            kdrt_ray object;
-            kdrt_hit h;
-            float enter, exit;
-            /* An instance in several leaves is walked once (a second walk repeats the first),
-               and only when the ray meets its world box before the best hit: a slab test is
-               far cheaper than carrying the ray into its space. */
-            if (tested[index & (KDRT__MAILBOX - 1u)] == index || !(in->mask & mask)) continue;
-            tested[index & (KDRT__MAILBOX - 1u)] = index;
+        const kdrt__level_node *n = &nodes[node];
+        if (n->count == 0) {
+            float near0, near1, far;
+            int hit0, hit1;
             s.tmax = best->t;
-            if (!kdrt__clip_to_box(&in->box, &s, &enter, &exit)) continue;
-            rules = kdrt__rules_for(query, ray, in->tree, in->id, in->mirrored, list != NULL,
-                                    &storage);
-            kdrt__object_ray(in, ray, best->t, &object);
-            if (!kdrt__walk(in->tree, &object, rules, &h, any_hit, list)) {
-                best->t = kdrt__list_bound(list, best->t);
+            hit0 = kdrt__clip_to_box(&nodes[n->first].box, &s, &near0, &far);
+            hit1 = kdrt__clip_to_box(&nodes[n->first + 1u].box, &s, &near1, &far);
+            if (hit0 && hit1) {
+                /* The farther child waits on the stack with its entry. */
+                const uint32_t first_near = near0 <= near1 ? 0u : 1u;
+                stack[sp].node = n->first + (1u - first_near);
+                stack[sp].t0 = first_near ? near0 : near1;
+                ++sp;
+                node = n->first + first_near;
                 continue;
             }
-            if (any_hit) return 1;
-            h.geometry = h.instance = in->id, h.cell = 0;
-            if (best->triangle == KDRT_INVALID_ID || kdrt__hit_before(&h, best)) *best = h, found = 1;
+            if (hit0 || hit1) {
+                node = n->first + (hit0 ? 0u : 1u);
+                continue;
+            }
+        } else {
+            for (i = 0; i < n->count; ++i) {
+                const int r = kdrt__walk_instance(&sc->now.instances[sc->top.items[n->first + i]],
+                                                  ray, query, &s, best, any_hit, list);
+                if (r == 2) return 1;
+                found |= r;
+            }
         }
         do {
             if (sp == 0) return found;
             --sp;
-            node = stack[sp].node, t0 = stack[sp].t0, t1 = stack[sp].t1;
-        } while (t0 > best->t);
+            node = stack[sp].node;
+        } while (stack[sp].t0 > best->t);
     }
 }
 
@@ -5520,7 +5820,7 @@ static int kdrt__scene_query(const kdrt_scene *sc, const kdrt_ray *ray, const kd
             best->t = kdrt__list_bound(list, best->t);
         }
     }
-    if (sc->instance_count) found |= kdrt__walk_instances(sc, ray, query, best, any_hit, list);
+    if (sc->top.nodes) found |= kdrt__walk_instances(sc, ray, query, best, any_hit, list);
     if (!found && !list) kdrt__miss(best);
     return found;
 }
@@ -5533,7 +5833,7 @@ KDRT_API int kdrt_scene_intersect(const kdrt_scene *scene, const kdrt_ray *ray,
         kdrt__miss(hit);
         return 0;
     }
-    if (scene->meshes && !scene->instance_count && scene->meshes->masks_full &&
+    if (scene->meshes && !scene->top.nodes && scene->meshes->masks_full &&
         (!query || (!query->flags && !query->filter && query->mask))) {
         /* Static meshes, every hit counting: the one tree's query, its hit named. */
         if (!kdrt_intersect(scene->meshes, ray, hit)) return 0;
@@ -5564,7 +5864,7 @@ KDRT_API uint32_t kdrt_scene_intersect_batch(const kdrt_scene *scene, const kdrt
             kdrt_hit *best = &hits[i];
             int hit = best->triangle != KDRT_INVALID_ID;
             if (hit) kdrt__name_mesh_hit(scene->meshes, best);
-            if (scene->instance_count) {
+            if (scene->top.nodes) {
                 if (!hit) kdrt__miss(best), best->t = rays[i].tmax;
                 hit |= kdrt__walk_instances(scene, &rays[i], query, best, 0, NULL);
                 if (!hit) kdrt__miss(best);
@@ -5589,7 +5889,7 @@ KDRT_API uint32_t kdrt_scene_occluded_batch(const kdrt_scene *scene, const kdrt_
     if (scene && rays && scene->meshes && kdrt__query_is_plain(scene->meshes, query)) {
         kdrt__batch(scene->meshes, rays, count, NULL, occluded, 1, NULL);
         for (i = 0; i < count; ++i) {
-            if (!occluded[i] && scene->instance_count) {
+            if (!occluded[i] && scene->top.nodes) {
                 kdrt_hit hit;
                 kdrt__miss(&hit), hit.t = rays[i].tmax;
                 occluded[i] = (uint8_t)kdrt__walk_instances(scene, &rays[i], query, &hit, 1, NULL);
@@ -5633,7 +5933,8 @@ KDRT_API int kdrt_scene_hit_surface(const kdrt_scene *scene, const kdrt_hit *hit
     }
     e = kdrt__find_entry(scene, hit->geometry);
     if (!e || e->type != KDRT_GEOMETRY_MESH ||
-        !kdrt__hit_corners(&scene->parts[scene->slot[e - scene->entries]].mesh, hit->triangle, p))
+        !kdrt__hit_corners(&scene->now.parts[scene->now.slot[e - scene->now.entries]].mesh,
+                           hit->triangle, p))
         return 0;
     kdrt__surface(p, NULL, hit->u, hit->v, point, normal);
     return 1;

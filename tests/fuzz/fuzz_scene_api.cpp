@@ -7,8 +7,9 @@
 // repeated, any or KDRT_INVALID_ID; any masks; transforms of every kind: identity, huge and tiny
 // scales (1e38, 1e-30, subnormal), mirrors, rotations, shears, singular and nearly singular
 // matrices, any floats. Build options as the tree target makes them, sometimes with an allocator
-// that fails one allocation. Then a sequence of kdrt_scene_set_transform(), kdrt_scene_commit()
-// and queries: every scene query on rays of any floats or aimed at what the scene holds, with
+// that fails one allocation. Then a sequence of kdrt_scene_set_transform(), kdrt_scene_attach()
+// (meshes and instances made as the entries are), kdrt_scene_detach(), kdrt_scene_enable(),
+// kdrt_scene_commit() and queries: every scene query on rays of any floats or aimed at what the scene holds, with
 // masks, culled faces and filters (taking all, refusing all, taking some, running a query of
 // their own on the same scene).
 // Checked, as kdrt.h documents it:
@@ -18,8 +19,9 @@
 //    mesh view) with the report naming the first bad geometry in ID order, or where one tree over
 //    the meshes merged in ID order fails (the report naming the mesh and its own triangle);
 //  - kdrt_scene_geometry() gives each entry back as given, with the committed transform; a
-//    refused kdrt_scene_set_transform() changes nothing; a commit applies exactly the accepted
-//    moves, and one that runs out of memory leaves the scene as it was;
+//    refused change changes nothing; a commit applies exactly the accepted changes, and one that
+//    runs out of memory (or whose rebuilt mesh tree fails) leaves the scene as it was; no hit
+//    names a disabled entry;
 //  - kdrt_scene_bounds() is finite or empty, and holds every instance's transformed box;
 //  - every hit lies in the ray's range with finite t, u, v and names a geometry of the scene
 //    (through an instance: that instance) that the query's mask lets through, and a triangle it
@@ -322,16 +324,41 @@ int type_of(const kdrt_geometry &g) {
     return type;
 }
 
+// The faults an entry may have of its own, as kdrt_scene_build() and kdrt_scene_attach() check
+// it (0: it may pass).
+std::set<int> own_faults(const kdrt_geometry &g) {
+    std::set<int> f;
+    if (g.id == KDRT_INVALID_ID) return std::set<int>{KDRT_ERROR_INVALID_GEOMETRY_ID};
+    if (type_of(g) == KDRT_GEOMETRY_MESH) {
+        const kdrt_triangles &v = g.mesh;
+        if (v.position_stride != 0 && v.position_stride < 12) f.insert(KDRT_ERROR_INVALID_STRIDE);
+        else if (v.triangle_count == 0) f.insert(0);
+        else if (v.triangle_count > KDRT_MAX_TRIANGLES) f.insert(KDRT_ERROR_SIZE_OVERFLOW);
+        else if (!v.positions) f.insert(KDRT_ERROR_NULL_ARGUMENT);
+        else f.insert(0);
+    } else if (type_of(g) == KDRT_GEOMETRY_INSTANCE) {
+        if (!g.tree) return std::set<int>{KDRT_ERROR_NULL_ARGUMENT};
+        const int must = refuses(g.tree, g.transform);
+        if (must != 0) f.insert(KDRT_ERROR_INVALID_TRANSFORM);
+        if (must != 1) f.insert(0);
+    } else {
+        f.insert(KDRT_ERROR_INVALID_OPTION);
+    }
+    return f;
+}
+
 // ---- what the scene holds, as the target expects it ----
 
 struct Entry {
     kdrt_geometry given{};
     uint32_t triangles = 0;  // the mesh's, or the instance's tree's
     float committed[12] = {}, pending[12] = {};
+    bool disabled = false;
 };
 
 struct Model {
-    std::map<uint32_t, Entry> entries;  // by ID
+    std::map<uint32_t, Entry> entries;  // by ID, as committed
+    std::map<uint32_t, Entry> next;     // by ID, as the next commit will make them
     const Entry *find(uint32_t id) const {
         const auto it = entries.find(id);
         return it == entries.end() ? nullptr : &it->second;
@@ -422,6 +449,7 @@ void check_names(const Model &model, const kdrt_ray &ray, const kdrt_hit &h, uin
     FUZZ_CHECK(std::isfinite(h.u) && std::isfinite(h.v), "%s: u=%a v=%a", what, h.u, h.v);
     const Entry *e = model.find(h.geometry);
     FUZZ_CHECK(e != nullptr, "%s: geometry %u is not in the scene", what, h.geometry);
+    FUZZ_CHECK(!e->disabled, "%s: geometry %u is disabled", what, h.geometry);
     const bool instance = e->given.type == KDRT_GEOMETRY_INSTANCE;
     FUZZ_CHECK(instance ? h.instance == h.geometry : h.instance == KDRT_INVALID_ID, "%s: geometry %u (%s), instance %u", what,
                h.geometry, instance ? "an instance" : "a mesh", h.instance);
@@ -469,6 +497,8 @@ struct Run {
     kdrt_tree *own_tree = nullptr;
     uint32_t own_triangles = 0;
     bool fast = false;  // the scene's meshes use KDRT_INTERSECTOR_FAST
+    bool meshes_changed = false;  // since the last commit: its mesh tree is rebuilt
+    std::vector<std::unique_ptr<MeshInput>> attached;  // the attached meshes' buffers
     explicit Run(FuzzedDataProvider &i) : in(i) {}
 
     uint32_t triangles_of(const kdrt_tree *tree) const { return tree && tree == own_tree ? own_triangles : triangles_of_tree(tree); }
@@ -480,6 +510,8 @@ struct Run {
             FUZZ_CHECK(g != nullptr, "kdrt_scene_geometry(%u) gave nothing", kv.first);
             FUZZ_CHECK(g->type == e.given.type && g->id == e.given.id && g->mask == e.given.mask && g->user == e.given.user,
                        "geometry %u came back changed", kv.first);
+            FUZZ_CHECK(((g->flags & KDRT_GEOMETRY_DISABLED) != 0) == e.disabled, "geometry %u: flags %#x, disabled %d", kv.first,
+                       g->flags, int(e.disabled));
             if (e.given.type == KDRT_GEOMETRY_MESH) {
                 FUZZ_CHECK(std::memcmp(&g->mesh, &e.given.mesh, sizeof g->mesh) == 0, "mesh %u's view came back changed", kv.first);
             } else {
@@ -638,24 +670,81 @@ struct Run {
         fuzz::context().clear();
     }
 
-    void set_transform_once() {
-        // Any ID: an instance's, a mesh's, one not in the scene.
-        uint32_t id;
-        if (!model.entries.empty() && in.ConsumeIntegralInRange<int>(0, 3) != 0) {
-            auto it = model.entries.begin();
-            std::advance(it, in.ConsumeIntegralInRange<size_t>(0, model.entries.size() - 1));
-            id = it->first;
-        } else {
-            id = in.ConsumeIntegralInRange<uint32_t>(0, 16);
+    // Any ID: an instance's, a mesh's, one not in the scene (as the next commit makes it).
+    uint32_t pick_next_id() {
+        if (!model.next.empty() && in.ConsumeIntegralInRange<int>(0, 3) != 0) {
+            auto it = model.next.begin();
+            std::advance(it, in.ConsumeIntegralInRange<size_t>(0, model.next.size() - 1));
+            return it->first;
         }
+        return in.ConsumeIntegralInRange<int>(0, 15) == 0 ? KDRT_INVALID_ID : in.ConsumeIntegralInRange<uint32_t>(0, 20);
+    }
+    // kdrt_scene_attach() of a mesh or an instance made as the build's entries are.
+    void attach_once() {
+        const uint32_t id = pick_next_id();
+        kdrt_geometry g;
+        if (in.ConsumeBool()) {
+            attached.emplace_back(new MeshInput);
+            make_mesh(in, *attached.back());
+            g = kdrt_mesh_geometry(id, &attached.back()->view);
+        } else {
+            const int t = in.ConsumeIntegralInRange<int>(0, 8);
+            float xf[12];
+            pick_transform(in, xf);
+            g = kdrt_instance_geometry(id, t < 7 ? objects()[size_t(t)].tree : t == 7 ? own_tree : nullptr, xf);
+        }
+        if (in.ConsumeBool()) g.mask = pick_mask(in);
+        if (in.ConsumeIntegralInRange<int>(0, 7) == 0) g.flags = in.ConsumeIntegralInRange<uint32_t>(0, 3);
+        const kdrt_result r = kdrt_scene_attach(scene, &g);
+        std::set<int> may;
+        if (id == KDRT_INVALID_ID) may = {KDRT_ERROR_INVALID_GEOMETRY_ID};
+        else if (g.flags > 1) may = {KDRT_ERROR_INVALID_OPTION};
+        else may = own_faults(g);
+        if (may.erase(0)) may.insert(model.next.count(id) ? KDRT_ERROR_INVALID_GEOMETRY_ID : KDRT_SUCCESS);
+        FUZZ_CHECK(may.count(r) != 0, "kdrt_scene_attach(%u): %s", id, kdrt_result_string(r));
+        if (r == KDRT_SUCCESS) {
+            Entry e;
+            e.given = g;
+            e.triangles = g.type == KDRT_GEOMETRY_MESH ? g.mesh.triangle_count : triangles_of(g.tree);
+            std::memcpy(e.pending, g.transform, sizeof e.pending);
+            e.disabled = g.flags != 0;
+            model.next[id] = e;
+            meshes_changed |= g.type == KDRT_GEOMETRY_MESH;
+        }
+        check_geometry();  // nothing is applied before the commit
+    }
+    void detach_once() {
+        const uint32_t id = pick_next_id();
+        const auto e = model.next.find(id);
+        const kdrt_result r = kdrt_scene_detach(scene, id);
+        FUZZ_CHECK(r == (e == model.next.end() ? KDRT_ERROR_INVALID_GEOMETRY_ID : KDRT_SUCCESS), "kdrt_scene_detach(%u): %s", id,
+                   kdrt_result_string(r));
+        if (r == KDRT_SUCCESS) {
+            meshes_changed |= e->second.given.type == KDRT_GEOMETRY_MESH;
+            model.next.erase(e);
+        }
+        check_geometry();
+    }
+    void enable_once() {
+        const uint32_t id = pick_next_id();
+        const bool enable = in.ConsumeBool();
+        const auto e = model.next.find(id);
+        const kdrt_result r = kdrt_scene_enable(scene, id, enable);
+        FUZZ_CHECK(r == (e == model.next.end() ? KDRT_ERROR_INVALID_GEOMETRY_ID : KDRT_SUCCESS), "kdrt_scene_enable(%u): %s", id,
+                   kdrt_result_string(r));
+        if (r == KDRT_SUCCESS) e->second.disabled = !enable;
+        check_geometry();
+    }
+    void set_transform_once() {
+        const uint32_t id = pick_next_id();
         float xf[12];
         pick_transform(in, xf);
         const bool null = in.ConsumeIntegralInRange<int>(0, 31) == 0;
-        const auto e = model.entries.find(id);
+        const auto e = model.next.find(id);
         const kdrt_result r = kdrt_scene_set_transform(scene, id, null ? nullptr : xf);
         if (null) {
             FUZZ_CHECK(r == KDRT_ERROR_NULL_ARGUMENT, "kdrt_scene_set_transform(NULL): %s", kdrt_result_string(r));
-        } else if (e == model.entries.end() || e->second.given.type != KDRT_GEOMETRY_INSTANCE) {
+        } else if (e == model.next.end() || e->second.given.type != KDRT_GEOMETRY_INSTANCE) {
             FUZZ_CHECK(r == KDRT_ERROR_INVALID_GEOMETRY_ID, "kdrt_scene_set_transform(%u), no instance: %s", id, kdrt_result_string(r));
         } else {
             const int must = refuses(e->second.given.tree, xf);
@@ -674,10 +763,16 @@ struct Run {
         const kdrt_result r = kdrt_scene_commit(scene);
         if (r == KDRT_ERROR_OUT_OF_MEMORY) {
             FUZZ_CHECK(heap.failed && !failed_before, "kdrt_scene_commit ran out of memory that did not run out");
+        } else if (r != KDRT_SUCCESS) {
+            // Only a rebuilt mesh tree may fail otherwise, as a tree over bad triangles does.
+            FUZZ_CHECK(meshes_changed && (r == KDRT_ERROR_NON_FINITE_VERTEX || r == KDRT_ERROR_INDEX_OUT_OF_RANGE),
+                       "kdrt_scene_commit: %s", kdrt_result_string(r));
         } else {
-            FUZZ_CHECK(r == KDRT_SUCCESS, "kdrt_scene_commit: %s", kdrt_result_string(r));
+            model.entries = model.next;
             for (auto &kv : model.entries) std::memcpy(kv.second.committed, kv.second.pending, sizeof kv.second.pending);
+            meshes_changed = false;
         }
+        // Failed or not, the pending changes are the next commit's.
         check_geometry();
         check_bounds();
         gather_targets();
@@ -778,26 +873,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             std::vector<const kdrt_geometry *> sorted;
             for (const kdrt_geometry &g : entries) sorted.push_back(&g);
             std::stable_sort(sorted.begin(), sorted.end(), [](const kdrt_geometry *a, const kdrt_geometry *b) { return a->id < b->id; });
-            auto own = [&](const kdrt_geometry &g) {  // the entry's possible faults; 0 for none
-                std::set<int> f;
-                if (g.id == KDRT_INVALID_ID) return std::set<int>{KDRT_ERROR_INVALID_GEOMETRY_ID};
-                if (type_of(g) == KDRT_GEOMETRY_MESH) {
-                    const kdrt_triangles &v = g.mesh;
-                    if (v.position_stride != 0 && v.position_stride < 12) f.insert(KDRT_ERROR_INVALID_STRIDE);
-                    else if (v.triangle_count == 0) f.insert(0);
-                    else if (v.triangle_count > KDRT_MAX_TRIANGLES) f.insert(KDRT_ERROR_SIZE_OVERFLOW);
-                    else if (!v.positions) f.insert(KDRT_ERROR_NULL_ARGUMENT);
-                    else f.insert(0);
-                } else if (type_of(g) == KDRT_GEOMETRY_INSTANCE) {
-                    if (!g.tree) return std::set<int>{KDRT_ERROR_NULL_ARGUMENT};
-                    const int must = refuses(g.tree, g.transform);
-                    if (must != 0) f.insert(KDRT_ERROR_INVALID_TRANSFORM);
-                    if (must != 1) f.insert(0);
-                } else {
-                    f.insert(KDRT_ERROR_INVALID_OPTION);
-                }
-                return f;
-            };
+            auto own = own_faults;
             may_build = true;
             for (size_t i = 0; i < sorted.size() && may_build;) {
                 size_t j = i + 1;
@@ -898,14 +974,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             std::memcpy(e.pending, g.transform, sizeof e.pending);
             run.model.entries[g.id] = e;
         }
+        run.model.next = run.model.entries;
         run.check_geometry();
         run.check_bounds();
         run.gather_targets();
         const int ops = in.ConsumeIntegralInRange<int>(1, 24);
         for (int i = 0; i < ops; ++i) {
-            switch (in.ConsumeIntegralInRange<int>(0, 7)) {
+            switch (in.ConsumeIntegralInRange<int>(0, 10)) {
             case 0: run.set_transform_once(); break;
             case 1: run.commit_once(); break;
+            case 2: run.attach_once(); break;
+            case 3: run.detach_once(); break;
+            case 4: run.enable_once(); break;
             default: run.query_once();
             }
         }
