@@ -537,17 +537,18 @@ std::string frames_summary(const std::vector<FramesSummary> &runs, unsigned fram
     }
     text += embree ? "  Speed\n" : "\n";
     for (const FramesSummary &run : runs) {
-        const std::string variant = run.variant + (embree ? "/" + run.rows[0].embree_quality : "");
+        const std::string variant = run.variant + (run.rows[0].embree ? "/" + run.rows[0].embree_quality : "");
         std::snprintf(buf, sizeof buf, "%9u %7u %-13s", run.instances, run.threads, variant.c_str());
         text += buf;
         for (const kb::FramesRow &row : run.rows) {
             const double k = kb::median(row.kdrt_ms), e = kb::median(row.embree_ms);
             const int digits = k < 10 ? 2 : 1;
-            if (embree) std::snprintf(buf, sizeof buf, " %8.*f/%-8.*f", digits, k, e < 10 ? 2 : 1, e);
+            if (row.embree) std::snprintf(buf, sizeof buf, " %8.*f/%-8.*f", digits, k, e < 10 ? 2 : 1, e);
+            else if (embree) std::snprintf(buf, sizeof buf, " %8.*f/%-8s", digits, k, "-");  // Embree failed here
             else std::snprintf(buf, sizeof buf, " %17.*f", digits, k);
             text += buf;
         }
-        if (embree) {
+        if (embree && run.rows.back().embree) {
             const double k = kb::median(run.rows.back().kdrt_ms), e = kb::median(run.rows.back().embree_ms);
             std::snprintf(buf, sizeof buf, "  %.2f", k > 0 ? e / k : 0.0);
             text += buf;
@@ -666,8 +667,8 @@ int run_frames(const kb::Options &opt, Csv &csv, Progress &progress) {
                        std::to_string(report.invalid_geometry) + ")");
                 continue;
             }
+            std::vector<float> peer_vertices = positions[0];  // Embree's vertex buffer, shared: it outlives peer
             kb::PeerFrames peer;
-            std::vector<float> peer_vertices = positions[0];  // Embree's vertex buffer, shared with it
             bool embree = opt.compare_embree;
             if (embree && !peer.build(world, peer_vertices, transforms, threads, error)) {
                 failed("Embree: " + error);
