@@ -1,8 +1,9 @@
 // What a game engine does with a kdrt_scene: the static level as mesh geometries (one tree over
 // all of them), a few meshes built once as trees, and dozens of instances of them moving every
-// frame. A frame sets the moved transforms and commits, which rebuilds only the small top-level
-// tree over the instances' boxes; then it traces camera rays from inside the player's own box
-// (a filter skips it) and shadow rays that a mask bit lets some objects stay out of. The program
+// frame. A frame sets the moved transforms and commits, which rebuilds only the small top level
+// over the instances' boxes; then it traces camera rays from inside the player's own box
+// (a filter skips it) and shadow rays that a mask bit lets some objects stay out of. Last, a
+// crate is spawned, hidden, shown and destroyed, each at the next commit. The program
 // checks what it shows and exits 1 when a check fails. Needs only kdrt.h and the C++ library.
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
@@ -105,14 +106,15 @@ static int failures = 0;
 static void check(bool ok, const char *what, int frame) {
     if (!ok) std::printf("FAILED, frame %d: %s\n", frame, what), ++failures;
 }
-// Does a ray straight down at (x, z) hit the target? Only the pickable bit: nothing else counts.
-static bool picks_target(const kdrt_scene *scene, float x, float z) {
+// Does a ray straight down at (x, z) hit geometry id? Only the pickable bit: nothing else counts.
+static bool picks(const kdrt_scene *scene, uint32_t id, float x, float z) {
     const kdrt_ray ray = {{x, 10, z}, 0, {0, -1, 0}, INFINITY, 0};
     kdrt_query pick = kdrt_default_query();
     pick.mask = kPickable;
     kdrt_hit hit;
-    return kdrt_scene_intersect(scene, &ray, &pick, &hit) && hit.geometry == kTarget;
+    return kdrt_scene_intersect(scene, &ray, &pick, &hit) && hit.geometry == id;
 }
+static bool picks_target(const kdrt_scene *scene, float x, float z) { return picks(scene, kTarget, x, z); }
 
 int main() {
     // The level, static: its meshes go into one tree together when the scene is built.
@@ -205,6 +207,28 @@ int main() {
         for (int k = 0; k < kKinds; ++k) std::printf(" %s %u%s", kKindNames[k], hits[k], k + 1 < kKinds ? "," : ";");
         std::printf(" %u shadow rays, %.1f%% shadowed\n", shadow_rays, 100.0 * shadowed / (shadow_rays ? shadow_rays : 1));
     }
+
+    // Objects come and go: a crate spawned between two rings, hidden, shown again and destroyed.
+    // Each change shows from the next commit on, and an ID detached is free again.
+    const uint32_t spawned = kFirstAgent + kAgents;
+    float spot[12];
+    place(spot, 0.4f, 0, 5.5f, 0.5f, 0);
+    kdrt_geometry crate = kdrt_instance_geometry(spawned, trees[0], spot);
+    crate.mask = kSeen | kCastsShadow | kPickable;
+    const char *steps[4] = {"spawned", "hidden", "shown", "destroyed"};
+    for (int step = 0; step < 4; ++step) {
+        const kdrt_result changed = step == 0   ? kdrt_scene_attach(scene, &crate)
+                                    : step == 3 ? kdrt_scene_detach(scene, spawned)
+                                                : kdrt_scene_enable(scene, spawned, step == 2);
+        const bool before = picks(scene, spawned, 5.5f, 0);
+        check(changed == KDRT_SUCCESS && before == (step == 1 || step == 3), "a change showed before its commit", frames + 1 + step);
+        if (kdrt_scene_commit(scene) != KDRT_SUCCESS) return std::printf("commit failed\n"), 1;
+        const bool after = picks(scene, spawned, 5.5f, 0);
+        check(after == (step == 0 || step == 2), "a change did not show after its commit", frames + 1 + step);
+        std::printf("crate %u %s: %s\n", spawned, steps[step], after ? "picked" : "not there");
+    }
+    check(kdrt_scene_attach(scene, &crate) == KDRT_SUCCESS, "the destroyed crate's ID is not free", frames + 5);
+
     check(filtered_player == 0 && unfiltered_player == camera_rays, "the player's filter", frames);
     std::printf("player: %u of %u filtered rays hit it, %u of %u unfiltered ones did\n", filtered_player, camera_rays,
                 unfiltered_player, camera_rays);

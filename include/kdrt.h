@@ -5138,66 +5138,80 @@ static float kdrt__box_centre(const kdrt_aabb *box, int axis)
     return 0.5f * box->min[axis] + 0.5f * box->max[axis]; /* finite for any finite box */
 }
 
-/* The bin of centre c among KDRT__LEVEL_BINS over [lo, lo + bins / scale]; in double, so that a
-   box of any finite size has finite bins. The split and the sort into children both call it,
-   so they agree. */
-static uint32_t kdrt__level_bin(float c, double lo, double scale)
+/* The bin of centre c among bins over [lo, lo + bins / scale]; in double, so that a box of any
+   finite size has finite bins. The split and the sort into children both call it, so they
+   agree. */
+static uint32_t kdrt__level_bin(float c, double lo, double scale, uint32_t bins)
 {
     const double f = ((double)c - lo) * scale; /* >= 0: c >= lo */
-    return f >= (double)(KDRT__LEVEL_BINS - 1u) ? KDRT__LEVEL_BINS - 1u : (uint32_t)f;
+    return f >= (double)(bins - 1u) ? bins - 1u : (uint32_t)f;
 }
 
-/* Splits items[begin, end) by the binned SAH over their centres: 1 with *mid and the children's
-   boxes, 0 for a leaf. */
-static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box, uint32_t begin,
-                           uint32_t end, uint32_t *mid, kdrt_aabb *left, kdrt_aabb *right)
+static void kdrt__grow_box(kdrt_aabb *box, const kdrt_aabb *b)
 {
-    const uint32_t n = end - begin;
-    double best = KDRT__LEVEL_INSTANCE_COST * n * kdrt__half_area(box->min, box->max);
-    double lo[3] = {0.0, 0.0, 0.0}, scale[3] = {0.0, 0.0, 0.0};
+    int a;
+    for (a = 0; a < 3; ++a) {
+        box->min[a] = b->min[a] < box->min[a] ? b->min[a] : box->min[a];
+        box->max[a] = b->max[a] > box->max[a] ? b->max[a] : box->max[a];
+    }
+}
+
+/* Splits items[begin, end) (n > 1) by the binned SAH over their centres, as many bins as items
+   up to KDRT__LEVEL_BINS: 1 with *mid and the children's boxes, 0 for a leaf. */
+static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box, uint32_t begin,
+                             uint32_t end, uint32_t *mid, kdrt_aabb *left, kdrt_aabb *right)
+{
+    const uint32_t n = end - begin, bins = n < KDRT__LEVEL_BINS ? n : KDRT__LEVEL_BINS;
+    /* Costs relative to the node's: a split costs KDRT__LEVEL_TRAVERSAL_COST * area more. */
+    const double area = kdrt__half_area(box->min, box->max);
+    double best = n > KDRT__LEVEL_MAX_LEAF ? INFINITY /* any split beats a leaf this big */
+                                           : (KDRT__LEVEL_INSTANCE_COST * n - KDRT__LEVEL_TRAVERSAL_COST) * area;
+    double lo = 0.0, scale = 0.0;
     uint32_t i, k, best_axis = 3, best_bin = 0;
-    float clo[3], chi[3];
+    kdrt_aabb centres = kdrt_aabb_empty();
     int axis;
-    for (axis = 0; axis < 3; ++axis) clo[axis] = INFINITY, chi[axis] = -INFINITY;
-    for (i = begin; i < end; ++i)
+    for (i = begin; i < end; ++i) {
+        const kdrt_aabb *ib = &b->boxes[b->items[i]];
         for (axis = 0; axis < 3; ++axis) {
-            const float c = kdrt__box_centre(&b->boxes[b->items[i]], axis);
-            clo[axis] = c < clo[axis] ? c : clo[axis], chi[axis] = c > chi[axis] ? c : chi[axis];
+            const float c = kdrt__box_centre(ib, axis);
+            centres.min[axis] = c < centres.min[axis] ? c : centres.min[axis];
+            centres.max[axis] = c > centres.max[axis] ? c : centres.max[axis];
         }
-    if (n > KDRT__LEVEL_MAX_LEAF) best = INFINITY; /* any split beats a leaf this big */
+    }
     for (axis = 0; axis < 3; ++axis) {
-        kdrt_aabb bin_box[KDRT__LEVEL_BINS], below[KDRT__LEVEL_BINS];
-        uint32_t bin_count[KDRT__LEVEL_BINS], below_count = 0;
+        kdrt_aabb bin_box[KDRT__LEVEL_BINS], acc;
+        uint32_t bin_count[KDRT__LEVEL_BINS], above_count[KDRT__LEVEL_BINS], count = 0;
         double above_area[KDRT__LEVEL_BINS];
-        kdrt_aabb acc = kdrt_aabb_empty();
-        uint32_t above_count[KDRT__LEVEL_BINS], count = 0;
-        if (!(chi[axis] > clo[axis])) continue;
-        lo[axis] = clo[axis];
-        scale[axis] = KDRT__LEVEL_BINS / ((double)chi[axis] - clo[axis]);
-        for (k = 0; k < KDRT__LEVEL_BINS; ++k) bin_box[k] = kdrt_aabb_empty(), bin_count[k] = 0;
+        const double axis_lo = centres.min[axis];
+        double axis_scale;
+        if (!(centres.max[axis] > centres.min[axis])) continue;
+        axis_scale = bins / ((double)centres.max[axis] - axis_lo);
+        for (k = 0; k < bins; ++k) bin_box[k] = kdrt_aabb_empty(), bin_count[k] = 0;
         for (i = begin; i < end; ++i) {
             const kdrt_aabb *ib = &b->boxes[b->items[i]];
-            k = kdrt__level_bin(kdrt__box_centre(ib, axis), lo[axis], scale[axis]);
+            k = kdrt__level_bin(kdrt__box_centre(ib, axis), axis_lo, axis_scale, bins);
             bin_count[k] += 1u;
-            bin_box[k] = kdrt_aabb_union(bin_box[k], *ib);
+            kdrt__grow_box(&bin_box[k], ib);
         }
         /* Above the plane after bin k - 1: bins k and up, swept from the top. */
-        for (k = KDRT__LEVEL_BINS - 1u; k > 0; --k) {
-            acc = kdrt_aabb_union(acc, bin_box[k]), count += bin_count[k];
-            above_area[k] = kdrt__half_area(acc.min, acc.max), above_count[k] = count;
-        }
         acc = kdrt_aabb_empty();
-        for (k = 1; k < KDRT__LEVEL_BINS; ++k) {
-            double cost;
-            acc = kdrt_aabb_union(acc, bin_box[k - 1]), below_count += bin_count[k - 1];
-            below[k] = acc;
-            if (below_count == 0 || above_count[k] == 0) continue;
-            cost = KDRT__LEVEL_TRAVERSAL_COST * kdrt__half_area(box->min, box->max) +
-                   KDRT__LEVEL_INSTANCE_COST * (kdrt__half_area(acc.min, acc.max) * below_count +
-                                              above_area[k] * above_count[k]);
-            if (cost < best) best = cost, best_axis = (uint32_t)axis, best_bin = k;
+        for (k = bins - 1u; k > 0; --k) {
+            kdrt__grow_box(&acc, &bin_box[k]), count += bin_count[k];
+            above_count[k] = count;
+            above_area[k] = count ? kdrt__half_area(acc.min, acc.max) : 0.0;
         }
-        if (best_axis == (uint32_t)axis) *left = below[best_bin];
+        acc = kdrt_aabb_empty(), count = 0;
+        for (k = 1; k < bins; ++k) {
+            double cost;
+            kdrt__grow_box(&acc, &bin_box[k - 1]), count += bin_count[k - 1];
+            if (count == 0 || above_count[k] == 0) continue;
+            cost = KDRT__LEVEL_INSTANCE_COST * (kdrt__half_area(acc.min, acc.max) * count +
+                                                above_area[k] * above_count[k]);
+            if (cost < best) {
+                best = cost, best_axis = (uint32_t)axis, best_bin = k;
+                lo = axis_lo, scale = axis_scale, *left = acc;
+            }
+        }
     }
     if (best_axis == 3) {
         uint32_t half;
@@ -5205,27 +5219,25 @@ static int kdrt__level_split(const kdrt__level_builder *b, const kdrt_aabb *box,
         /* Every centre at one point: halves in the items' order. */
         half = begin + n / 2u;
         *left = *right = kdrt_aabb_empty();
-        for (i = begin; i < end; ++i)
-            if (i < half) *left = kdrt_aabb_union(*left, b->boxes[b->items[i]]);
-            else *right = kdrt_aabb_union(*right, b->boxes[b->items[i]]);
+        for (i = begin; i < end; ++i) kdrt__grow_box(i < half ? left : right, &b->boxes[b->items[i]]);
         *mid = half;
         return 1;
     }
-    /* The bins below best_bin first, in place. */
+    /* The bins below best_bin first, in place; the box of those above as they go. */
+    *right = kdrt_aabb_empty();
     i = begin, k = end;
     while (i < k) {
         const uint32_t item = b->items[i];
-        if (kdrt__level_bin(kdrt__box_centre(&b->boxes[item], (int)best_axis), lo[best_axis],
-                          scale[best_axis]) < best_bin) {
+        const kdrt_aabb *ib = &b->boxes[item];
+        if (kdrt__level_bin(kdrt__box_centre(ib, (int)best_axis), lo, scale, bins) < best_bin) {
             ++i;
         } else {
+            kdrt__grow_box(right, ib);
             b->items[i] = b->items[--k];
             b->items[k] = item;
         }
     }
     *mid = i;
-    *right = kdrt_aabb_empty();
-    for (i = *mid; i < end; ++i) *right = kdrt_aabb_union(*right, b->boxes[b->items[i]]);
     return 1;
 }
 
@@ -5718,12 +5730,32 @@ static void kdrt__name_mesh_hit(const kdrt_tree *meshes, kdrt_hit *hit)
     hit->triangle -= part->first, hit->geometry = part->id;
 }
 
-/* One instance of the walk: skipped unless its mask lets the query through and the ray meets
-   its world box before the best hit (a slab test is far cheaper than carrying the ray into its
-   space), else walked there. As kdrt__walk_instances, and 2 for an any-hit found. */
+/* The top level's slab test, kdrt__clip_to_box's conservative entry and exit, for rays whose
+   inverse direction is finite on every axis (no axis needs the origin alone): no branch an
+   axis. */
+static KDRT__FORCEINLINE int kdrt__level_clip(const kdrt_aabb *box, const kdrt__ray_setup *s,
+                                              float *t0)
+{
+    float enter = s->tmin, exit = s->tmax;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        const float ta = (box->min[a] - s->org[a]) * s->inv_dir[a];
+        const float tb = (box->max[a] - s->org[a]) * s->inv_dir[a];
+        const float tnear = (ta < tb ? ta : tb) * (1.0f - KDRT__T_SLACK);
+        const float tfar = (ta < tb ? tb : ta) * (1.0f + KDRT__T_SLACK);
+        enter = tnear > enter ? tnear : enter;
+        exit = tfar < exit ? tfar : exit;
+    }
+    *t0 = enter;
+    return enter <= exit;
+}
+
+/* One instance of the walk: skipped unless its mask lets the query through and (unless
+   box_tested: a leaf of one, whose box is the instance's) the ray meets its world box before the
+   best hit, else walked in its space. As kdrt__walk_instances, and 2 for an any-hit found. */
 static int kdrt__walk_instance(const kdrt__instance *in, const kdrt_ray *ray,
-                               const kdrt_query *query, kdrt__ray_setup *s, kdrt_hit *best,
-                               int any_hit, kdrt__hit_list *list)
+                               const kdrt_query *query, kdrt__ray_setup *s, int box_tested,
+                               kdrt_hit *best, int any_hit, kdrt__hit_list *list)
 {
     kdrt__rules storage;
     const kdrt__rules *rules;
@@ -5732,7 +5764,7 @@ static int kdrt__walk_instance(const kdrt__instance *in, const kdrt_ray *ray,
     float enter, exit;
     if (!(in->mask & (query ? query->mask : 0xFFFFFFFFu))) return 0;
     s->tmax = best->t;
-    if (!kdrt__clip_to_box(&in->box, s, &enter, &exit)) return 0;
+    if (!box_tested && !kdrt__clip_to_box(&in->box, s, &enter, &exit)) return 0;
     rules = kdrt__rules_for(query, ray, in->tree, in->id, in->mirrored, list != NULL, &storage);
     kdrt__object_ray(in, ray, best->t, &object);
     if (!kdrt__walk(in->tree, &object, rules, &h, any_hit, list)) {
@@ -5758,18 +5790,24 @@ static int kdrt__walk_instances(const kdrt_scene *sc, const kdrt_ray *ray, const
     uint32_t sp = 0, node = 0, i;
     kdrt__ray_setup s;
     float t0, t1;
-    int found = 0;
+    int found = 0, finite;
     if (!nodes || !kdrt__setup_ray(ray, &s)) return 0;
     s.tmax = best->t;
     if (!kdrt__clip_to_box(&nodes[0].box, &s, &t0, &t1)) return 0;
+    finite = kdrt__finite(s.inv_dir[0]) && kdrt__finite(s.inv_dir[1]) && kdrt__finite(s.inv_dir[2]);
     for (;;) {
         const kdrt__level_node *n = &nodes[node];
         if (n->count == 0) {
+            const kdrt_aabb *box0 = &nodes[n->first].box, *box1 = &nodes[n->first + 1u].box;
             float near0, near1, far;
             int hit0, hit1;
             s.tmax = best->t;
-            hit0 = kdrt__clip_to_box(&nodes[n->first].box, &s, &near0, &far);
-            hit1 = kdrt__clip_to_box(&nodes[n->first + 1u].box, &s, &near1, &far);
+            if (finite) {
+                hit0 = kdrt__level_clip(box0, &s, &near0), hit1 = kdrt__level_clip(box1, &s, &near1);
+            } else {
+                hit0 = kdrt__clip_to_box(box0, &s, &near0, &far);
+                hit1 = kdrt__clip_to_box(box1, &s, &near1, &far);
+            }
             if (hit0 && hit1) {
                 /* The farther child waits on the stack with its entry. */
                 const uint32_t first_near = near0 <= near1 ? 0u : 1u;
@@ -5786,7 +5824,8 @@ static int kdrt__walk_instances(const kdrt_scene *sc, const kdrt_ray *ray, const
         } else {
             for (i = 0; i < n->count; ++i) {
                 const int r = kdrt__walk_instance(&sc->now.instances[sc->top.items[n->first + i]],
-                                                  ray, query, &s, best, any_hit, list);
+                                                  ray, query, &s, n->count == 1u, best, any_hit,
+                                                  list);
                 if (r == 2) return 1;
                 found |= r;
             }
