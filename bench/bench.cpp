@@ -239,6 +239,7 @@ std::string usage() {
            "       kdrt-bench --sweep [options] [MESH_OR_FOLDER ...]\n"
            "       kdrt-bench --accuracy [options] [MESH_OR_FOLDER ...]\n"
            "       kdrt-bench --scene merged,field [options] [MESH ...]\n"
+           "       kdrt-bench --scene frames [options] [MESH ...]\n"
            "\n"
            "Builds kdrt's default kd-tree (SAH builder, default quality, max leaf size 4) over each\n"
            "mesh and traces the benchmark frame: the mesh scaled to fill the view in front of a\n"
@@ -322,8 +323,12 @@ std::string usage() {
            "  --intersector LIST  watertight (the default), fast (Moeller-Trumbore), or both\n"
            "                      separated by a comma: a row for each, named in the last column\n"
            "  --accuracy          speed beside error counts for each intersector (see below)\n"
-           "  --scene LIST        merged, field or both: kdrt_scene against one tree (see below)\n"
-           "  --instances N       with --scene field: instances in the field (default 1000)\n"
+           "  --scene LIST        merged, field or both: kdrt_scene against one tree; or frames:\n"
+           "                      a game's frames against Embree (see below)\n"
+           "  --instances N       with --scene field: instances in the field (default 1000); with\n"
+           "                      --scene frames a list, each count in turn (default 1000,10000)\n"
+           "  --frames N          with --scene frames: frames timed per count, threads and\n"
+           "                      variant (default 30)\n"
            "  --instance-triangles N  with --scene field: each mesh simplified to about N\n"
            "                      triangles first (default 3000; 0: whole)\n"
            "  --instance-spacing D  with --scene field: the grid's pitch, in the unit the meshes\n"
@@ -371,6 +376,20 @@ std::string usage() {
            "TraceMs;MRaysPerSec;Versus;VersusRatio;Mismatches;EmbreeBuildMs;EmbreeMRaysPerSec;\n"
            "EmbreeRatio;EmbreeMismatches (bench/README.md, \"Scenes\").\n"
            "\n"
+           "--scene frames times a game's frames, kdrt beside Embree in the same run: a level (a\n"
+           "floor, a wall and every mesh but the last, whole) as mesh geometries, --instances N\n"
+           "moving instances of the meshes (simplified as the field's), and the last mesh\n"
+           "(default nefertiti) deformed by a wave every frame. Each frame: the deformed mesh's\n"
+           "tree rebuilt (kdrt FAST against Embree LOW, and MEDIUM against MEDIUM: the Variant)\n"
+           "and swapped in, every instance moved and the scene committed, then primary rays\n"
+           "(--size) and shadow rays from their hits to a point light, single calls. Each count of\n"
+           "--instances at each of --build-threads (default 1,2: the kdrt build's scheduler,\n"
+           "Embree's device threads and the tracing threads alike), --frames N frames a variant.\n"
+           "It writes Phase;Instances;Threads;Variant;KdrtMs;EmbreeMs;Ratio;KdrtMaxMs;EmbreeMaxMs;\n"
+           "Frames;Count;Mismatches;ComparedRays;EmbreeQuality, a row per phase (move, commit,\n"
+           "rebuild, primary, shadow, frame), the medians over the frames, and a summary\n"
+           "(bench/README.md, \"Frames\").\n"
+           "\n"
            "The mesh folder: " + common::mesh_dir_help() + ".\n";
 }
 
@@ -380,6 +399,7 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     std::string not_scene_option;  // the last option that --scene has no use for
     std::string field_option;      // the last option that only --scene field takes
     bool hard_rays_given = false, repeat_given = false, size_given = false;
+    bool frames_given = false, spacing_given = false, threads_given = false;
     bool batch_given = false, batch_size_given = false, tile_given = false;
     for (int i = 1; i < argc; ++i) {
         std::string arg = argv[i];
@@ -403,6 +423,8 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             arg == "--reference-rays" || arg == "--hard-rays" || arg == "--sweep" || arg == "--kernel" || ray_order_option)
             not_scene_option = arg;
         if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
+        if (arg == "--instance-spacing") spacing_given = true;
+        threads_given = threads_given || arg == "--threads";
         repeat_given = repeat_given || arg == "--repeat";
         size_given = size_given || arg == "--size";
         if (arg == "--help" || arg == "-h") {
@@ -438,11 +460,16 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.width = unsigned(w), out.height = unsigned(h);
         } else if (arg == "--build-threads") {
             if (!value(v)) return false;
-            if (!common::parse_count(v, 1024, n)) {
-                error = "--build-threads wants a whole number from 0 (all cores) to 1024, got '" + v + "'";
-                return false;
+            out.build_thread_counts.clear();
+            for (const std::string &item : list_items(v)) {
+                if (!common::parse_count(item, 1024, n)) {
+                    error = "--build-threads wants a whole number from 0 (all cores) to 1024 (with --scene frames a "
+                            "comma-separated list of them), got '" + v + "'";
+                    return false;
+                }
+                out.build_thread_counts.push_back(unsigned(n));
             }
-            out.build_threads = unsigned(n);
+            out.build_threads = out.build_thread_counts[0];
         } else if (arg == "--threads" || arg == "--repeat" || arg == "--subdivide") {
             if (!value(v)) return false;
             unsigned long long max = arg == "--subdivide" ? 8 : 1024;
@@ -527,16 +554,31 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             }
         } else if (arg == "--scene") {
             if (!value(v)) return false;
-            if (!parse_choices<std::string>(v, {{"merged", "merged"}, {"field", "field"}}, out.scenes)) {
-                error = "--scene wants merged, field or both separated by a comma, got '" + v + "'";
+            if (!parse_choices<std::string>(v, {{"merged", "merged"}, {"field", "field"}, {"frames", "frames"}},
+                                            out.scenes)) {
+                error = "--scene wants merged, field or both separated by a comma, or frames, got '" + v + "'";
                 return false;
             }
         } else if (arg == "--instances") {
             if (!value(v)) return false;
-            if (!common::parse_count(v, 1000000, out.instances) || out.instances == 0) {
-                error = "--instances wants a whole number from 1 to 1000000, got '" + v + "'";
+            out.instance_counts.clear();
+            for (const std::string &item : list_items(v)) {
+                uint32_t count = 0;
+                if (!common::parse_count(item, 1000000, count) || count == 0) {
+                    error = "--instances wants a whole number from 1 to 1000000 (with --scene frames a comma-separated "
+                            "list of them), got '" + v + "'";
+                    return false;
+                }
+                out.instance_counts.push_back(count);
+            }
+            out.instances = out.instance_counts[0];
+        } else if (arg == "--frames") {
+            if (!value(v)) return false;
+            if (!common::parse_count(v, 100000, out.frames) || out.frames == 0) {
+                error = "--frames wants a whole number from 1 to 100000, got '" + v + "'";
                 return false;
             }
+            frames_given = true;
         } else if (arg == "--instance-triangles") {
             if (!value(v)) return false;
             if (!common::parse_count(v, KDRT_MAX_TRIANGLES, out.instance_triangles)) {
@@ -601,6 +643,46 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     if (out.builders.empty()) out.builders = {out.sweep ? "median" : "sah"};
     if (out.leaf_sizes.empty()) out.leaf_sizes = out.sweep ? sweep_leaf_sizes() : std::vector<uint32_t>{kDefaultLeafSize};
     if (out.sweep && !out.compare_chosen) out.compare_chosen = true;  // and no Embree
+    const bool frames = std::find(out.scenes.begin(), out.scenes.end(), "frames") != out.scenes.end();
+    if (frames_given && !frames) {
+        error = "--frames applies only to --scene frames";
+        return false;
+    }
+    if (!frames && out.instance_counts.size() > 1) {
+        error = "--instances takes one count (a list only with --scene frames)";
+        return false;
+    }
+    if (!frames && out.build_thread_counts.size() > 1) {
+        error = "--build-threads takes one count (a list only with --scene frames)";
+        return false;
+    }
+    if (frames) {
+        if (out.scenes.size() > 1) {
+            error = "--scene frames runs alone: give it without merged or field";
+            return false;
+        }
+        if (out.accuracy) {
+            error = "--scene and --accuracy are two modes: give one of them";
+            return false;
+        }
+        std::string refused = not_scene_option;
+        if (refused.empty() && repeat_given) refused = "--repeat";
+        if (refused.empty() && threads_given) refused = "--threads";
+        if (!refused.empty()) {
+            error = refused + " does not apply to --scene frames (--frames N sets the frames timed, and --build-threads "
+                              "the threads of every phase)";
+            return false;
+        }
+        if (spacing_given) {
+            error = "--instance-spacing applies only to --scene field";
+            return false;
+        }
+        if (out.instance_counts.empty()) out.instance_counts = {1000, 10000};
+        if (out.build_thread_counts.empty()) out.build_thread_counts = {1, 2};
+        out.instances = out.instance_counts[0];
+        out.build_threads = out.build_thread_counts[0];
+        return true;
+    }
     if (!out.scenes.empty()) {
         if (out.accuracy) {
             error = "--scene and --accuracy are two modes: give one of them";

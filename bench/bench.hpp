@@ -72,9 +72,15 @@ struct Options {
     std::vector<kdrt_intersector> intersectors;
     bool accuracy = false;             // --accuracy: error counts per intersector, not leaf sizes
     size_t hard_rays = 20000;          // --accuracy: rays per watertight and per hard-case set
-    // --scene: "merged" and/or "field", in the order given (scenes.hpp); empty: not the scene mode.
+    // --scene: "merged" and/or "field", in the order given (scenes.hpp), or "frames" alone
+    // (frames.hpp); empty: not the scene mode.
     std::vector<std::string> scenes;
-    uint32_t instances = 1000;         // --instances: the field's
+    uint32_t instances = 1000;         // --instances: the field's (the first of the list)
+    // --scene frames: --instances and --build-threads as lists, each count measured in turn
+    // (default 1000,10000 and 1,2; the other modes take one), and the frames timed (--frames).
+    std::vector<uint32_t> instance_counts;
+    std::vector<unsigned> build_thread_counts;
+    unsigned frames = 30;
     uint32_t instance_triangles = 3000;  // --instance-triangles: each field mesh's, about; 0: whole
     double instance_spacing = 1;       // --instance-spacing: the field's grid pitch
     std::vector<std::string> inputs;   // mesh files or folders

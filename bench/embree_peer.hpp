@@ -69,4 +69,43 @@ private:
     double build_ms_ = 0;
 };
 
+struct FramesWorld;
+
+// kdrt-bench --scene frames's Embree (bench/README.md, "Frames"): the world as kdrt has it, a
+// two-level scene on a device of `threads` threads: an RTCScene per prototype (MEDIUM) placed by
+// instance geometries, the level's meshes in an RTCScene of their own placed once (MEDIUM), and
+// the deforming mesh's own RTCScene, whose one triangle geometry reads the caller's vertex buffer
+// (shared, never copied), placed by an instance geometry; every one under its kdrt geometry ID.
+class PeerFrames {
+public:
+    PeerFrames();
+    ~PeerFrames();
+    PeerFrames(const PeerFrames &) = delete;
+    PeerFrames &operator=(const PeerFrames &) = delete;
+
+    // deformed: the deforming mesh's vertices (deformed_positions()' layout), which the caller
+    // rewrites between frames and keeps alive; transforms: every instance's, 12 floats each.
+    bool build(const FramesWorld &world, const std::vector<float> &deformed, const std::vector<float> &transforms,
+               unsigned threads, std::string &error);
+    // The build quality of the deforming mesh's scene and of the top level from now on.
+    void set_quality(PeerQuality quality);
+    // The deforming mesh rebuilt from the vertex buffer as it now is: rtcUpdateGeometryBuffer,
+    // rtcCommitGeometry, rtcCommitScene of its scene. The wall time in ms.
+    double rebuild();
+    // Every instance moved (rtcSetGeometryTransform, rtcCommitGeometry; transforms as in build)
+    // and the deforming mesh's instance committed again. The wall time in ms.
+    double move(const std::vector<float> &transforms);
+    // rtcCommitScene of the top level. The wall time in ms.
+    double commit();
+    // rtcIntersect1 on every ray (hits in PeerScene::trace's terms), rtcOccluded1 on every ray,
+    // on `threads` threads. The wall time in ms.
+    double trace(const std::vector<kdrt_ray> &rays, unsigned threads, std::vector<kdrt_hit> &hits) const;
+    double occluded(const std::vector<kdrt_ray> &rays, unsigned threads, std::vector<unsigned char> &occluded) const;
+    bool failed(std::string &error) const;  // an Embree error since the last call
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
 }  // namespace kb

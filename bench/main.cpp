@@ -7,6 +7,7 @@
 
 #include "bench.hpp"
 #include "embree_peer.hpp"
+#include "frames.hpp"
 #include "scenes.hpp"
 #include "oracle/hard_cases.hpp"
 #include "oracle/reference.hpp"
@@ -430,11 +431,10 @@ bool run_scene(const kb::Options &opt, const kb::SceneLayout &layout, const kdrt
     return true;
 }
 
-// --scene: the meshes named (default: the bunny, the ogre and nefertiti of the shared folder, else
-// generated ones), each scene of opt.scenes measured by run_scene.
-int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
-    int failures = 0;
-    std::string error, write_error;
+// --scene's meshes: those named (default: the bunny, the ogre and nefertiti of the shared folder,
+// else generated ones); a file that fails to load is noted and counted in `failures`.
+std::vector<common::Mesh> scene_meshes(const kb::Options &opt, Progress &progress, int &failures) {
+    std::string error;
     std::vector<std::string> args = opt.inputs;
     if (args.empty()) {
         for (const char *name : {"stanford-bunny.obj", "ogre.obj", "nefertiti.obj"})
@@ -460,6 +460,14 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
         }
         meshes.push_back(std::move(mesh));
     }
+    return meshes;
+}
+
+// --scene: each scene of opt.scenes measured by run_scene.
+int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
+    int failures = 0;
+    std::string error, write_error;
+    const std::vector<common::Mesh> meshes = scene_meshes(opt, progress, failures);
     if (meshes.empty()) {
         progress.note("kdrt-bench: --scene: no mesh to place");
         return 1;
@@ -489,6 +497,322 @@ int run_scenes(const kb::Options &opt, Csv &csv, Progress &progress) {
         if (!run_scene(opt, layout, options, csv, progress, failures, write_error)) {
             progress.note("kdrt-bench: " + write_error);
             return 1;
+        }
+    }
+    if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");
+    if (!csv.finish(error)) {
+        progress.note("kdrt-bench: " + error);
+        return 1;
+    }
+    return failures ? 1 : 0;
+}
+
+// --scene frames: the deforming mesh's new tree in place of the old one from the next commit on.
+kdrt_result swap_deforming(kdrt_scene *scene, const kb::FramesWorld &world, const kdrt_tree *tree) {
+    const kdrt_result r = kdrt_scene_detach(scene, world.deforming_id());
+    if (r != KDRT_SUCCESS) return r;
+    const kdrt_geometry g = kdrt_instance_geometry(world.deforming_id(), tree, world.deforming_transform);
+    return kdrt_scene_attach(scene, &g);
+}
+
+// --scene frames: the medians of one count, thread count and variant, for the summary.
+struct FramesSummary {
+    uint32_t instances = 0;
+    unsigned threads = 1;
+    std::string variant;
+    std::vector<kb::FramesRow> rows;  // move, commit, rebuild, primary, shadow, frame
+};
+
+// The summary table: a line per count, thread count and variant, kdrt's median ms / Embree's per
+// phase, and kdrt's frame speed over Embree's.
+std::string frames_summary(const std::vector<FramesSummary> &runs, unsigned frames, bool embree) {
+    std::string text = "kdrt-bench --scene frames: the median of " + std::to_string(frames) + " frames, ms" +
+                       (embree ? ", kdrt / Embree; Speed: kdrt's frame rate over Embree's" : " (kdrt)") + "\n";
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%9s %7s %-13s", "Instances", "Threads", "Variant");
+    text += buf;
+    for (const char *phase : {"move", "commit", "rebuild", "primary", "shadow", "frame"}) {
+        std::snprintf(buf, sizeof buf, " %17s", phase);
+        text += buf;
+    }
+    text += embree ? "  Speed\n" : "\n";
+    for (const FramesSummary &run : runs) {
+        const std::string variant = run.variant + (run.rows[0].embree ? "/" + run.rows[0].embree_quality : "");
+        std::snprintf(buf, sizeof buf, "%9u %7u %-13s", run.instances, run.threads, variant.c_str());
+        text += buf;
+        for (const kb::FramesRow &row : run.rows) {
+            const double k = kb::median(row.kdrt_ms), e = kb::median(row.embree_ms);
+            const int digits = k < 10 ? 2 : 1;
+            if (row.embree) std::snprintf(buf, sizeof buf, " %8.*f/%-8.*f", digits, k, e < 10 ? 2 : 1, e);
+            else if (embree) std::snprintf(buf, sizeof buf, " %8.*f/%-8s", digits, k, "-");  // Embree failed here
+            else std::snprintf(buf, sizeof buf, " %17.*f", digits, k);
+            text += buf;
+        }
+        if (embree && run.rows.back().embree) {
+            const double k = kb::median(run.rows.back().kdrt_ms), e = kb::median(run.rows.back().embree_ms);
+            std::snprintf(buf, sizeof buf, "  %.2f", k > 0 ? e / k : 0.0);
+            text += buf;
+        }
+        text += "\n";
+    }
+    return text;
+}
+
+// --scene frames (bench/README.md, "Frames"): for each count of opt.instance_counts and of
+// opt.build_thread_counts, the world built once on each side, then for each variant opt.frames
+// frames, kdrt's and Embree's in turn, each phase timed; a row per phase.
+int run_frames(const kb::Options &opt, Csv &csv, Progress &progress) {
+    int failures = 0;
+    std::string error, write_error;
+    const auto write_failed = [&] {
+        progress.note("kdrt-bench: " + write_error);
+        return 1;
+    };
+    const std::vector<common::Mesh> meshes = scene_meshes(opt, progress, failures);
+    if (meshes.empty()) {
+        progress.note("kdrt-bench: --scene frames: no mesh to place");
+        return 1;
+    }
+    const uint32_t seed = 1;
+    // The instances: every mesh simplified as the field's; the statues: every mesh but the last,
+    // whole; the deforming mesh: the last, whole.
+    std::vector<common::Mesh> simplified;
+    std::string counts;
+    for (const common::Mesh &mesh : meshes) {
+        simplified.push_back(kb::clustered(kb::unit_sized(mesh), opt.instance_triangles));
+        counts += (counts.empty() ? "" : ", ") + mesh.name + " " + std::to_string(simplified.back().triangle_count());
+    }
+    const std::vector<common::Mesh> statues(meshes.begin(), meshes.end() - 1);
+    const common::Mesh &deforming = meshes.back();
+    progress.status("--scene frames: instances of " + counts + " triangles; deforming " + deforming.name + ", " +
+                    std::to_string(deforming.triangle_count()) + " triangles");
+
+    // The prototypes' trees, once: a tree is the same on any scheduler.
+    std::vector<TreePtr> prototypes;
+    std::vector<const kdrt_tree *> prototype_trees;
+    for (const common::Mesh &mesh : simplified) {
+        const kdrt_triangles view = mesh.view();
+        kdrt_tree *built = nullptr;
+        const kdrt_result r = kdrt_tree_build(&view, nullptr, &built, nullptr);
+        prototypes.emplace_back(built, kdrt_tree_free);
+        prototype_trees.push_back(built);
+        if (r != KDRT_SUCCESS) {
+            progress.note("kdrt-bench: --scene frames: the tree of " + mesh.name + ": " + kdrt_result_string(r));
+            return 1;
+        }
+    }
+
+    struct Variant {
+        const char *name;
+        kdrt_build_quality quality;
+        kb::PeerQuality peer;
+    };
+    const Variant variants[] = {{"fast", KDRT_BUILD_QUALITY_FAST, kb::PeerQuality::low},
+                                {"medium", KDRT_BUILD_QUALITY_MEDIUM, kb::PeerQuality::medium}};
+    const char *phases[] = {"move", "commit", "rebuild", "primary", "shadow", "frame"};
+    enum { kMove, kCommit, kRebuild, kPrimary, kShadow, kFrame };
+    progress.total = opt.instance_counts.size() * opt.build_thread_counts.size() * std::size(variants);
+    if (!csv.line(kb::frames_csv_header(), write_error)) return write_failed();
+    std::vector<FramesSummary> summary;
+    bool any_embree = false;
+
+    for (uint32_t count : opt.instance_counts) {
+        const kb::FramesWorld world = kb::frames_world(simplified, statues, deforming, count, seed);
+        const std::vector<kdrt_ray> rays = kb::frames_camera_rays(world, opt.width, opt.height);
+        uint64_t level_triangles = 0;
+        for (const common::Mesh &mesh : world.level) level_triangles += mesh.triangle_count();
+        for (unsigned asked : opt.build_thread_counts) {
+            common::ThreadScheduler pool(asked);
+            const unsigned threads = pool.threads();
+            kdrt_build_options options = kdrt_default_build_options();
+            if (threads > 1) options.scheduler = pool.hooks();
+            const std::string where = "--scene frames: " + std::to_string(count) + " instances, " +
+                                      std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+            const auto failed = [&](const std::string &what) {
+                progress.note("kdrt-bench: " + where + ": " + what);
+                ++failures;
+            };
+
+            // Frame 0, the world as it starts: the deforming mesh's first tree, the scene over
+            // the instances, the level's meshes and that tree, and Embree's the same.
+            unsigned frame = 0;
+            std::vector<float> transforms(12 * size_t(count));
+            for (uint32_t i = 0; i < count; ++i) kb::mover_transform(world, i, frame, &transforms[12 * size_t(i)]);
+            std::vector<float> positions[2];  // the frame's vertices and the last frame's, which its tree reads
+            kb::deformed_positions(world, frame, positions[0]);
+            kdrt_triangles deformed_view = world.deforming.view();
+            deformed_view.positions = positions[0].data();
+            kdrt_tree *built = nullptr;
+            kdrt_result r = kdrt_tree_build(&deformed_view, &options, &built, nullptr);
+            TreePtr deformed(built, kdrt_tree_free);
+            if (r != KDRT_SUCCESS) {
+                failed(std::string("the deforming mesh's tree: ") + kdrt_result_string(r));
+                continue;
+            }
+            std::vector<kdrt_geometry> geometries;
+            for (uint32_t i = 0; i < count; ++i)
+                geometries.push_back(kdrt_instance_geometry(i, prototype_trees[world.movers[i].prototype], &transforms[12 * size_t(i)]));
+            std::vector<kdrt_triangles> level_views;
+            for (const common::Mesh &mesh : world.level) level_views.push_back(mesh.view());
+            for (uint32_t k = 0; k < world.level.size(); ++k) geometries.push_back(kdrt_mesh_geometry(world.level_id(k), &level_views[k]));
+            geometries.push_back(kdrt_instance_geometry(world.deforming_id(), deformed.get(), world.deforming_transform));
+            kdrt_scene *made = nullptr;
+            kdrt_build_report report;
+            common::Stopwatch clock;
+            r = kdrt_scene_build(geometries.data(), uint32_t(geometries.size()), &options, &made, &report);
+            const double scene_ms = clock.ms();
+            ScenePtr scene(made, kdrt_scene_free);
+            if (r != KDRT_SUCCESS) {
+                failed(std::string("kdrt_scene_build: ") + kdrt_result_string(r) + " (geometry " +
+                       std::to_string(report.invalid_geometry) + ")");
+                continue;
+            }
+            std::vector<float> peer_vertices = positions[0];  // Embree's vertex buffer, shared: it outlives peer
+            kb::PeerFrames peer;
+            bool embree = opt.compare_embree;
+            if (embree && !peer.build(world, peer_vertices, transforms, threads, error)) {
+                failed("Embree: " + error);
+                embree = false;
+            }
+            any_embree |= embree;
+            char built_in[200];
+            std::snprintf(built_in, sizeof built_in, "%zu geometries, %llu triangles in the level, %u deforming, %zu rays a "
+                          "frame; kdrt_scene_build in %.1f ms", geometries.size(), (unsigned long long)level_triangles,
+                          world.deforming.triangle_count(), rays.size(), scene_ms);
+            progress.status(where + ": " + built_in);
+
+            for (const Variant &variant : variants) {
+                progress.step(where + ", " + variant.name + (embree ? std::string(" (Embree ") + kb::peer_quality_name(variant.peer) + ")" : "") +
+                              ": " + std::to_string(opt.frames) + " frames of " + std::to_string(opt.width) + "x" +
+                              std::to_string(opt.height) + " primary and shadow rays");
+                if (embree) peer.set_quality(variant.peer);
+                kdrt_build_options quality = options;
+                quality.quality = variant.quality;
+                std::vector<kb::FramesRow> rows(std::size(phases));
+                for (size_t p = 0; p < rows.size(); ++p) {
+                    rows[p].phase = phases[p];
+                    rows[p].instances = count;
+                    rows[p].threads = threads;
+                    rows[p].variant = variant.name;
+                    rows[p].embree = embree;
+                    rows[p].embree_quality = kb::peer_quality_name(variant.peer);
+                }
+                rows[kMove].count = rows[kCommit].count = count;
+                rows[kRebuild].count = world.deforming.triangle_count();
+                rows[kPrimary].count = rays.size();
+                rows[kPrimary].compared = rows[kShadow].compared = embree;
+                std::vector<uint64_t> shadow_counts;
+                std::vector<kdrt_hit> hits, peer_hits;
+                std::vector<unsigned char> occluded, peer_occluded;
+                std::vector<kdrt_ray> shadow;
+                bool ok = true;
+                for (unsigned f = 0; f < opt.frames && ok; ++f) {
+                    // The frame's world, as a game writes it (untimed): where every instance is
+                    // now, and the deforming mesh's vertices.
+                    ++frame;
+                    for (uint32_t i = 0; i < count; ++i) kb::mover_transform(world, i, frame, &transforms[12 * size_t(i)]);
+                    std::vector<float> &now = positions[frame % 2];
+                    kb::deformed_positions(world, frame, now);
+                    double ms[std::size(phases)] = {};
+
+                    // kdrt: the new tree, swapped in with the instances' moves, one commit.
+                    deformed_view.positions = now.data();
+                    clock = common::Stopwatch();
+                    r = kdrt_tree_build(&deformed_view, &quality, &built, nullptr);
+                    ms[kRebuild] = clock.ms();
+                    TreePtr next(built, kdrt_tree_free);
+                    if (r != KDRT_SUCCESS) {
+                        failed(std::string("the deforming mesh's tree: ") + kdrt_result_string(r));
+                        ok = false;
+                        break;
+                    }
+                    clock = common::Stopwatch();
+                    for (uint32_t i = 0; i < count && r == KDRT_SUCCESS; ++i)
+                        r = kdrt_scene_set_transform(scene.get(), i, &transforms[12 * size_t(i)]);
+                    if (r == KDRT_SUCCESS) r = swap_deforming(scene.get(), world, next.get());
+                    ms[kMove] = clock.ms();
+                    if (r != KDRT_SUCCESS) {
+                        failed(std::string("moving the instances and swapping the deforming mesh's tree: ") + kdrt_result_string(r));
+                        ok = false;
+                        break;
+                    }
+                    clock = common::Stopwatch();
+                    r = kdrt_scene_commit(scene.get());
+                    ms[kCommit] = clock.ms();
+                    if (r != KDRT_SUCCESS) {
+                        failed(std::string("kdrt_scene_commit: ") + kdrt_result_string(r));
+                        ok = false;
+                        break;
+                    }
+                    deformed = std::move(next);  // the last frame's tree freed, the scene on the new one
+                    hits.resize(rays.size());
+                    ms[kPrimary] = common::timed_parallel(rays.size(), threads, [&](size_t i) {
+                        kdrt_scene_intersect(scene.get(), &rays[i], nullptr, &hits[i]);
+                    });
+                    // Shadow rays from the primary hits to the light (untimed), as make_rays' are.
+                    shadow.clear();
+                    for (const kdrt_hit &h : hits) {
+                        float point[3], dir[3];
+                        kdrt_ray s;
+                        if (h.triangle == KDRT_INVALID_ID || !kdrt_scene_hit_surface(scene.get(), &h, point, nullptr)) continue;
+                        for (int a = 0; a < 3; ++a) dir[a] = world.light[a] - point[a];
+                        if (!kdrt_scene_spawn_ray(scene.get(), &h, dir, &s)) continue;
+                        for (int a = 0; a < 3; ++a) s.dir[a] = world.light[a] - s.org[a];
+                        s.tmin = 0, s.tmax = 1;
+                        shadow.push_back(s);
+                    }
+                    shadow_counts.push_back(shadow.size());
+                    occluded.resize(shadow.size());
+                    ms[kShadow] = common::timed_parallel(shadow.size(), threads, [&](size_t i) {
+                        occluded[i] = (unsigned char)kdrt_scene_occluded(scene.get(), &shadow[i], nullptr);
+                    });
+
+                    double peer_ms[std::size(phases)] = {};
+                    if (embree) {
+                        // Embree: the vertex buffer written (untimed), its scene rebuilt, every
+                        // instance moved, the top level committed, the same rays.
+                        std::copy(now.begin(), now.end(), peer_vertices.begin());
+                        peer_ms[kRebuild] = peer.rebuild();
+                        peer_ms[kMove] = peer.move(transforms);
+                        peer_ms[kCommit] = peer.commit();
+                        peer_ms[kPrimary] = peer.trace(rays, threads, peer_hits);
+                        peer_ms[kShadow] = peer.occluded(shadow, threads, peer_occluded);
+                        if (peer.failed(error)) {
+                            failed(error);
+                            ok = false;
+                            break;
+                        }
+                        rows[kPrimary].mismatches += kb::count_scene_mismatches(hits, world.first, peer_hits, world.first, 1e-4);
+                        rows[kPrimary].compared_rays += rays.size();
+                        size_t first = 0;
+                        rows[kShadow].mismatches += kb::count_differing_occlusion(occluded, peer_occluded, first);
+                        rows[kShadow].compared_rays += shadow.size();
+                    }
+                    for (size_t p = 0; p < kFrame; ++p) ms[kFrame] += ms[p], peer_ms[kFrame] += peer_ms[p];
+                    for (size_t p = 0; p < rows.size(); ++p) {
+                        rows[p].kdrt_ms.push_back(ms[p]);
+                        if (embree) rows[p].embree_ms.push_back(peer_ms[p]);
+                    }
+                }
+                if (!ok) break;
+                {
+                    std::vector<double> counts_as_ms(shadow_counts.begin(), shadow_counts.end());
+                    rows[kShadow].count = uint64_t(kb::median(counts_as_ms));
+                }
+                rows[kFrame].count = rows[kPrimary].count + rows[kShadow].count;
+                for (const kb::FramesRow &row : rows)
+                    if (!csv.line(kb::frames_csv_row(row), write_error)) return write_failed();
+                summary.push_back({count, threads, variant.name, rows});
+            }
+        }
+    }
+    if (!summary.empty()) {
+        const std::string table = frames_summary(summary, opt.frames, any_embree);
+        // Beside a CSV file on standard output; with the CSV there, on standard error.
+        if (!opt.output.empty()) {
+            if (!common::write_flushed(stdout, table, "standard output", error)) progress.note("kdrt-bench: " + error), ++failures;
+        } else {
+            std::fprintf(stderr, "\n%s", table.c_str());
         }
     }
     if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) or run(s) failed; see above");
@@ -604,6 +928,7 @@ int run(int argc, char **argv) {
         return 1;
     }
 
+    if (opt.scenes == std::vector<std::string>{"frames"}) return run_frames(opt, csv, progress);
     if (!opt.scenes.empty()) return run_scenes(opt, csv, progress);
     int failures = 0;
     std::vector<Input> inputs;

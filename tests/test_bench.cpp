@@ -1,7 +1,9 @@
 // kdrt-bench's pieces: options, the original's leaf-size stop rule, the CSV format, the scene,
 // the reference comparison behind the Mismatches column, the diffuse rays' spawned origins, and
-// the --accuracy sets, rows and summary, and the --scene worlds, their comparison and rows.
+// the --accuracy sets, rows and summary, and the --scene worlds, their comparison and rows, and
+// the --scene frames world and rows.
 #include "bench.hpp"
+#include "frames.hpp"
 #include "scenes.hpp"
 #include "test_support.hpp"
 
@@ -1046,4 +1048,84 @@ TEST_CASE("scene worlds through kdrt_scene answer as the one tree over their tri
         }
         kdrt_scene_free(scene);
     }
+}
+
+TEST_CASE("bench option --scene frames: its lists, --frames, and what does not apply", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    REQUIRE(parse({"--scene", "frames"}, opt, error));
+    CHECK(opt.scenes == std::vector<std::string>{"frames"});
+    CHECK(opt.frames == 30);
+    CHECK(opt.instance_counts == std::vector<uint32_t>{1000, 10000});
+    CHECK(opt.build_thread_counts == std::vector<unsigned>{1, 2});
+    REQUIRE(parse({"--scene", "frames", "--frames", "4", "--instances", "7,9", "--build-threads", "2", "--size", "16x8",
+                   "--instance-triangles", "100", "--compare", "none"},
+                  opt, error));
+    CHECK(opt.frames == 4);
+    CHECK(opt.instance_counts == std::vector<uint32_t>{7, 9});
+    CHECK(opt.instances == 7);
+    CHECK(opt.build_thread_counts == std::vector<unsigned>{2});
+    CHECK(opt.build_threads == 2);
+    // The other modes take one count, as before.
+    REQUIRE(parse({"--scene", "field", "--instances", "20", "--build-threads", "2"}, opt, error));
+    CHECK(opt.instances == 20);
+    CHECK(opt.build_threads == 2);
+
+    const std::vector<std::vector<const char *>> bad = {
+        {"--scene", "frames,field"},  {"--scene", "frames", "--frames", "0"}, {"--scene", "field", "--frames", "3"},
+        {"--frames", "3"},            {"--scene", "field", "--instances", "5,6"}, {"--build-threads", "1,2"},
+        {"--scene", "frames", "--instances", "5,"}, {"--scene", "frames", "--repeat", "2"},
+        {"--scene", "frames", "--threads", "2"}, {"--scene", "frames", "--instance-spacing", "1.5"},
+        {"--scene", "frames", "--rays", "shadow"}, {"--scene", "frames", "--accuracy"}};
+    for (const auto &args : bad) {
+        INFO(args[0] << " " << (args.size() > 1 ? args[1] : "") << " " << (args.size() > 2 ? args[2] : ""));
+        error.clear();
+        CHECK_FALSE(parse(args, opt, error));
+        bool named = false;
+        for (const char *arg : args) named = named || (arg[0] == '-' && error.find(arg) != std::string::npos);
+        CHECK(named);
+    }
+}
+
+TEST_CASE("the frames world: IDs, moves, the deformed mesh and the rows", "[bench]") {
+    const common::Mesh ball = kt::sphere(4, 8, 1.0);
+    const uint32_t n = ball.triangle_count();
+    const kb::FramesWorld world = kb::frames_world({ball, ball}, {ball}, ball, 7, 1);
+    REQUIRE(world.movers.size() == 7);
+    REQUIRE(world.level.size() == 3);  // the floor, the wall, one statue
+    CHECK(world.level_id(0) == 7);
+    CHECK(world.deforming_id() == 10);
+    REQUIRE(world.first.size() == 11);  // every ID, and a triangle's place in one list of them all
+    for (uint32_t id = 0; id < 7; ++id) CHECK(world.first[id] == n * id);
+    CHECK(world.first[10] - world.first[9] == n);  // the statue
+
+    float a[12], b[12], again[12];
+    kb::mover_transform(world, 3, 0, a);
+    kb::mover_transform(world, 3, 1, b);
+    kb::mover_transform(world, 3, 0, again);
+    CHECK(std::memcmp(a, again, sizeof a) == 0);  // a frame's place depends on the frame alone
+    CHECK(std::memcmp(a, b, sizeof a) != 0);      // and every instance moves from frame to frame
+    const double moved = std::hypot(a[3] - b[3], a[11] - b[11]);
+    CHECK(moved > 0);
+    CHECK(moved < 0.1);
+
+    std::vector<float> p0, p1;
+    kb::deformed_positions(world, 0, p0);
+    kb::deformed_positions(world, 1, p1);
+    REQUIRE(p0.size() == world.deforming.positions.size() + 4);  // Embree's padding
+    CHECK(p0 != p1);
+    for (size_t i = 0; i < world.deforming.positions.size(); ++i) CHECK(std::fabs(p0[i] - world.deforming.positions[i]) <= 0.021f);
+
+    const std::vector<kdrt_ray> rays = kb::frames_camera_rays(world, 4, 3);
+    CHECK(rays.size() == 12);
+
+    kb::FramesRow row;
+    row.phase = "primary", row.instances = 7, row.threads = 2, row.variant = "fast";
+    row.kdrt_ms = {2, 4, 3};
+    row.count = 12;
+    CHECK(kb::frames_csv_row(row) == "primary;7;2;fast;3.000;;;4.000;;3;12;;;");
+    row.embree = true, row.embree_ms = {1, 1.5, 2}, row.embree_quality = "low";
+    row.compared = true, row.mismatches = 1, row.compared_rays = 36;
+    CHECK(kb::frames_csv_row(row) == "primary;7;2;fast;3.000;1.500;0.500;4.000;2.000;3;12;1;36;low");
+    CHECK(split(kb::frames_csv_header(), ';').size() == split(kb::frames_csv_row(row), ';').size());
 }
