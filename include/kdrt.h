@@ -2239,18 +2239,23 @@ static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const flo
     }
 }
 
+/* The bin of position x on axis k. */
+static uint32_t kdrt__bin_at(const kdrt__bins *bins, int k, float x)
+{
+    return kdrt__bin((x - bins->lo[k]) * bins->scale[k], bins->top);
+}
+
 /* Counts refs[0..n) into bins. SSE2 bins a reference's three axes at once, each lane rounding
    and clamping as kdrt__bin does (max returns its second operand for NaN, which kdrt__bin sends
    to 0 too), so the bins and the tree are the same either way. */
 static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
 {
-    const float last = bins->top;
     uint32_t r;
     int k;
 #if KDRT__SSE2
     if (bins->sse) {
         const __m128 lo = _mm_loadu_ps(bins->lo), scale = _mm_loadu_ps(bins->scale);
-        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(last);
+        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(bins->top);
         for (r = 0; r < n; ++r) {
             /* Lanes 0 to 2 are x, y, z; lane 3 reads the next field of the reference, unused. */
             uint32_t at[8]; /* the bins of lo[0..2], then of hi[0..2] from 4 */
@@ -2266,9 +2271,27 @@ static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
 #endif
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
-            bins->starts[k][kdrt__bin((refs[r].lo[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
-            bins->ends[k][kdrt__bin((refs[r].hi[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
+            bins->starts[k][kdrt__bin_at(bins, k, refs[r].lo[k])] += 1;
+            bins->ends[k][kdrt__bin_at(bins, k, refs[r].hi[k])] += 1;
         }
+}
+
+/* Bounds on what each child of plane will hold, from the bins of a node of n references: the
+   references are then split in one pass, without counting them first. A position's bin never
+   falls as the position grows (a subtraction and a product by a scale >= 0, each rounded, then
+   clamped and truncated), so a reference that reaches below the plane starts in the plane's bin
+   or before, and one that reaches above it ends in the plane's bin or after. A bin of slack
+   each side keeps the bound safe (the split writes up to it) should a position ever be binned
+   a bin off, by a compiler's rounding, here and in kdrt__bin_refs. */
+static void kdrt__bins_room(const kdrt__bins *bins, uint32_t n, const kdrt__plane *plane,
+                            uint32_t room[2])
+{
+    const int k = plane->axis;
+    const uint32_t at = kdrt__bin_at(bins, k, plane->pos);
+    uint32_t i, below = 0, ended = 0;
+    for (i = 0; i <= at + 1u && i < bins->count; ++i) below += bins->starts[k][i];
+    for (i = 0; i + 2u <= at; ++i) ended += bins->ends[k][i];
+    room[0] = below, room[1] = n - ended;
 }
 
 /* The planes between bins of a node of n references, costed from the bins' counts. */
@@ -2314,17 +2337,24 @@ static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
 /* The children's references, in arrays from the arena (or, with no arena, at the top of a
    parallel build, from the allocator): a reference on one side is copied, one the plane cuts is
    split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies, or
-   (FAST, no clipping) has its box cut at the plane. When sides is not NULL it gets each
-   reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
+   (FAST, no clipping) has its box cut at the plane. bound[c] is at least what child c gets
+   (kdrt__bins_room), or KDRT_INVALID_ID: then the sides are counted first. When sides is not
+   NULL it gets each reference's side, and index[c] where it went in child c (or
+   KDRT_INVALID_ID). */
 static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
                                     const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
-                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
-                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
+                                    const uint32_t bound[2], float child_lo[2][3],
+                                    float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2],
+                                    unsigned char *sides, uint32_t *index[2])
 {
     uint32_t room[2] = {0, 0}, r, c;
-    for (r = 0; r < n; ++r) {
-        unsigned side = kdrt__ref_side(&refs[r], plane);
-        room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
+    if (bound[0] != KDRT_INVALID_ID && bound[1] != KDRT_INVALID_ID) {
+        room[0] = bound[0], room[1] = bound[1];
+    } else {
+        for (r = 0; r < n; ++r) {
+            unsigned side = kdrt__ref_side(&refs[r], plane);
+            room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
+        }
     }
     for (c = 0; c < 2; ++c) {
         /* One to spare: a reference is written to both sides and kept on its own. */
@@ -2368,6 +2398,7 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
             ++count[c];
         }
     }
+    KDRT_ASSERT(count[0] <= room[0] && count[1] <= room[1]);
     return KDRT_SUCCESS;
 }
 
@@ -2448,21 +2479,25 @@ static kdrt_result kdrt__bin_refs_chunked(const kdrt__builder *b, const kdrt_sch
 /* The node's split, or axis -1 for a leaf: at most max_leaf_size triangles, at max_depth, or no
    plane within the budget cheaper than testing all n (cost-based termination). With events (the
    exact region) every candidate is tried; without, the bins choose, and where they find nothing
-   worth a split every candidate is tried before the node is made a leaf. */
+   worth a split every candidate is tried before the node is made a leaf. room gets bounds on
+   the children's sizes where the node was binned (kdrt__bins_room), else KDRT_INVALID_ID. */
 static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena,
                                       const kdrt_scheduler *scheduler, const kdrt__ref *refs,
                                       uint32_t n, const kdrt__events *events, const float lo[3],
                                       const float hi[3], uint32_t depth, uint32_t budget,
-                                      kdrt__plane *best)
+                                      kdrt__plane *best, uint32_t room[2])
 {
     kdrt__bins bins;
     double area = kdrt__half_area(lo, hi), leaf_cost = (double)b->sah_isect * kdrt__leaf_blocks(n);
+    int binned = 0;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
+    room[0] = room[1] = KDRT_INVALID_ID;
     if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0)) return KDRT_SUCCESS;
     if (events) {
         kdrt__sweep_axes(b, events, n, lo, hi, 1.0 / area, budget, best);
     } else {
         if (b->exact_max < n || n > KDRT__EVENT_REF_MASK) {
+            binned = 1;
             kdrt__bins_init(b, lo, hi, &bins);
             if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
                 if (kdrt__bin_refs_chunked(b, scheduler, refs, n, lo, hi, &bins) != KDRT_SUCCESS)
@@ -2482,6 +2517,7 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         }
     }
     if (!(best->cost < leaf_cost)) best->axis = -1;
+    else if (binned) kdrt__bins_room(&bins, n, best, room);
     return KDRT_SUCCESS;
 }
 
@@ -2559,6 +2595,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
     kdrt__events entry, child_events[2];
     unsigned char *sides = NULL;
     uint32_t node = 0, count[2] = {0, 0}, child_budget[2] = {0, 0}, *index[2] = {NULL, NULL}, i;
+    uint32_t room[2] = {KDRT_INVALID_ID, KDRT_INVALID_ID};
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
     kdrt_result r = KDRT_SUCCESS;
@@ -2577,7 +2614,8 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
                           b->node_count + 1, sizeof(kdrt__node));
     if (r == KDRT_SUCCESS) {
         node = b->node_count++;
-        r = kdrt__choose_plane(b, arena, NULL, refs, n, events, lo, hi, depth, budget, &plane);
+        r = kdrt__choose_plane(b, arena, NULL, refs, n, events, lo, hi, depth, budget, &plane,
+                               room);
     }
     if (r == KDRT_SUCCESS && plane.axis >= 0) {
         kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
@@ -2588,8 +2626,8 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
             if (!sides || !index[0] || !index[1]) r = KDRT_ERROR_OUT_OF_MEMORY;
         }
         if (r == KDRT_SUCCESS)
-            r = kdrt__split_refs(b, binned ? NULL : arena, refs, n, &plane, child_lo, child_hi,
-                                 child, count, sides, index);
+            r = kdrt__split_refs(b, binned ? NULL : arena, refs, n, &plane, room, child_lo,
+                                 child_hi, child, count, sides, index);
         /* The bins' counts can be off by a reference or two: the real ones decide. */
         if (r == KDRT_SUCCESS && !kdrt__share_budget(budget, count, child_budget)) plane.axis = -1;
     }
@@ -2672,6 +2710,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
     kdrt__ref *child[2] = {NULL, NULL};
     kdrt__events child_events[2];
     uint32_t node = top->node_count++, count[2] = {0, 0}, child_budget[2] = {0, 0};
+    uint32_t room[2] = {KDRT_INVALID_ID, KDRT_INVALID_ID};
     uint32_t *index[2] = {NULL, NULL};
     unsigned char *sides = NULL;
     float child_lo[2][3], child_hi[2][3];
@@ -2685,7 +2724,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
     kdrt__arena_init(&arena, b->allocator);
     if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH)
         r = kdrt__choose_plane(b, &arena, scheduler, refs, n, events, lo, hi, depth, budget,
-                               &plane);
+                               &plane, room);
     if (r == KDRT_SUCCESS && plane.axis >= 0) {
         kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
         if (events) {
@@ -2695,8 +2734,8 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
             if (!sides || !index[0] || !index[1]) r = KDRT_ERROR_OUT_OF_MEMORY;
         }
         if (r == KDRT_SUCCESS)
-            r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, sides,
-                                 index);
+            r = kdrt__split_refs(b, NULL, refs, n, &plane, room, child_lo, child_hi, child, count,
+                                 sides, index);
         if (r == KDRT_SUCCESS && !kdrt__share_budget(budget, count, child_budget)) {
             kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
             child[0] = child[1] = NULL;
