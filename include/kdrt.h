@@ -2294,6 +2294,83 @@ static void kdrt__bins_room(const kdrt__bins *bins, uint32_t n, const kdrt__plan
     room[0] = below, room[1] = n - ended;
 }
 
+#if KDRT__SSE2
+/* Blocks of 8 (kdrt__leaf_blocks) of 4 counts: n / 8, plus one for a remainder, no overflow. */
+static __m128i kdrt__blocks_sse2(__m128i n)
+{
+    const __m128i seven = _mm_set1_epi32(7);
+    return _mm_add_epi32(_mm_srli_epi32(n, 3),
+                         _mm_srli_epi32(_mm_add_epi32(_mm_and_si128(n, seven), seven), 3));
+}
+
+/* Costs the planes between the bins on one axis of a node of n references 4 at a time, by the
+   operations of kdrt__consider (no planars) in the same order, each rounding as there
+   (contraction is off): the costs, and so the plane kept, are the scalar loop's bit for bit. */
+static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bins, uint32_t n,
+                                  kdrt__plane *best)
+{
+    /* Each plane's counts below and above, and whether they fit the budget, padded to 4. */
+    uint32_t below[KDRT_SAH_BINS + 3], above[KDRT_SAH_BINS + 3], fits[KDRT_SAH_BINS + 3];
+    uint32_t i, j, sum = 0, ended = 0;
+    const uint32_t planes = bins->count - 1u;
+    const __m128 lo = _mm_set1_ps(c->lo), hi = _mm_set1_ps(c->hi);
+    const __m128 length = _mm_set1_ps(c->hi - c->lo), count = _mm_set1_ps((float)bins->count);
+    const __m128d lo_d = _mm_set1_pd((double)c->lo), hi_d = _mm_set1_pd((double)c->hi);
+    const __m128d cap = _mm_set1_pd(c->cap), side = _mm_set1_pd(c->side);
+    const __m128d inv_area = _mm_set1_pd(c->inv_area), trav = _mm_set1_pd(c->trav);
+    const __m128d isect = _mm_set1_pd(c->isect), isect_empty = _mm_set1_pd(c->isect_empty);
+    const __m128d inf = _mm_set1_pd(INFINITY);
+    const __m128i zero = _mm_setzero_si128();
+    for (i = 0; i < planes; ++i) {
+        sum += bins->starts[c->k][i], ended += bins->ends[c->k][i];
+        below[i] = sum, above[i] = n - ended;
+        fits[i] = (uint64_t)sum + (n - ended) <= c->budget ? 0xFFFFFFFFu : 0u;
+    }
+    for (; i % 4u; ++i) below[i] = above[i] = fits[i] = 0;
+    for (i = 0; i < planes; i += 4) {
+        const __m128i nb = _mm_loadu_si128((const __m128i *)(const void *)(below + i));
+        const __m128i na = _mm_loadu_si128((const __m128i *)(const void *)(above + i));
+        const __m128i bb = kdrt__blocks_sse2(nb), ba = kdrt__blocks_sse2(na);
+        const __m128 at =
+            _mm_cvtepi32_ps(_mm_setr_epi32((int)i + 1, (int)i + 2, (int)i + 3, (int)i + 4));
+        const __m128 pos = _mm_add_ps(lo, _mm_mul_ps(length, _mm_div_ps(at, count)));
+        /* Inside the box (not on a face, not NaN) and within the budget. */
+        const __m128 inside = _mm_and_ps(_mm_cmpgt_ps(pos, lo), _mm_cmplt_ps(pos, hi));
+        const __m128i ok = _mm_and_si128(
+            _mm_loadu_si128((const __m128i *)(const void *)(fits + i)), _mm_castps_si128(inside));
+        const __m128i empty = _mm_or_si128(_mm_cmpeq_epi32(nb, zero), _mm_cmpeq_epi32(na, zero));
+        float at_pos[4];
+        double cost[4];
+        int h;
+        for (h = 0; h < 2; ++h) { /* lanes 2h and 2h + 1, in double */
+            const __m128d p = _mm_cvtps_pd(h ? _mm_movehl_ps(pos, pos) : pos);
+            const __m128d e = _mm_castsi128_pd(h ? _mm_unpackhi_epi32(empty, empty)
+                                                 : _mm_unpacklo_epi32(empty, empty));
+            const __m128d valid =
+                _mm_castsi128_pd(h ? _mm_unpackhi_epi32(ok, ok) : _mm_unpacklo_epi32(ok, ok));
+            const __m128d blocks_below = _mm_cvtepi32_pd(h ? _mm_srli_si128(bb, 8) : bb);
+            const __m128d blocks_above = _mm_cvtepi32_pd(h ? _mm_srli_si128(ba, 8) : ba);
+            const __m128d p_below =
+                _mm_mul_pd(_mm_add_pd(cap, _mm_mul_pd(_mm_sub_pd(p, lo_d), side)), inv_area);
+            const __m128d p_above =
+                _mm_mul_pd(_mm_add_pd(cap, _mm_mul_pd(_mm_sub_pd(hi_d, p), side)), inv_area);
+            const __m128d scale =
+                _mm_or_pd(_mm_and_pd(e, isect_empty), _mm_andnot_pd(e, isect));
+            const __m128d sah = _mm_add_pd(
+                trav, _mm_mul_pd(scale, _mm_add_pd(_mm_mul_pd(p_below, blocks_below),
+                                                   _mm_mul_pd(p_above, blocks_above))));
+            _mm_storeu_pd(cost + 2 * h, _mm_or_pd(_mm_and_pd(valid, sah),
+                                                  _mm_andnot_pd(valid, inf)));
+        }
+        _mm_storeu_ps(at_pos, pos);
+        for (j = 0; j < 4; ++j) /* in order, the first of equal costs kept, as in the scalar loop */
+            if (cost[j] < best->cost)
+                best->axis = c->k, best->pos = at_pos[j], best->planar_below = 1,
+                best->cost = cost[j];
+    }
+}
+#endif
+
 /* The planes between bins of a node of n references, costed from the bins' counts. */
 static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uint32_t n,
                              const float lo[3], const float hi[3], double inv_area,
@@ -2306,6 +2383,12 @@ static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uin
         kdrt__axis_cost cost;
         if (bins->scale[k] == 0.0f) continue;
         cost = kdrt__axis_setup(b, k, lo, hi, inv_area, budget);
+#if KDRT__SSE2
+        if (bins->sse) {
+            kdrt__bins_costs_sse2(&cost, bins, n, best);
+            continue;
+        }
+#endif
         for (i = 1; i < bins->count; ++i) {
             below += bins->starts[k][i - 1], ended += bins->ends[k][i - 1];
             kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins->count),
