@@ -2254,17 +2254,25 @@ static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
     int k;
 #if KDRT__SSE2
     if (bins->sse) {
-        const __m128 lo = _mm_loadu_ps(bins->lo), scale = _mm_loadu_ps(bins->scale);
+        /* The reference's six floats as two overlapping loads, lo[0..2] hi[0] and lo[2] hi[0..2]
+           (never its triangle number, whose bits would be a subnormal float), each lane with
+           its axis's offset and scale. */
+        const __m128 lo_a = _mm_setr_ps(bins->lo[0], bins->lo[1], bins->lo[2], bins->lo[0]);
+        const __m128 lo_b = _mm_setr_ps(bins->lo[2], bins->lo[0], bins->lo[1], bins->lo[2]);
+        const __m128 scale_a =
+            _mm_setr_ps(bins->scale[0], bins->scale[1], bins->scale[2], bins->scale[0]);
+        const __m128 scale_b =
+            _mm_setr_ps(bins->scale[2], bins->scale[0], bins->scale[1], bins->scale[2]);
         const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(bins->top);
         for (r = 0; r < n; ++r) {
-            /* Lanes 0 to 2 are x, y, z; lane 3 reads the next field of the reference, unused. */
-            uint32_t at[8]; /* the bins of lo[0..2], then of hi[0..2] from 4 */
-            __m128 f = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo), lo), scale);
-            __m128 g = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].hi), lo), scale);
+            uint32_t at[8]; /* starts x, y, z, end x; then start z, ends x, y, z */
+            __m128 f = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo), lo_a), scale_a);
+            __m128 g = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo + 2), lo_b), scale_b);
             f = _mm_min_ps(_mm_max_ps(f, zero), top), g = _mm_min_ps(_mm_max_ps(g, zero), top);
-            _mm_storeu_si128((__m128i *)at, _mm_cvttps_epi32(f));
-            _mm_storeu_si128((__m128i *)(at + 4), _mm_cvttps_epi32(g));
-            for (k = 0; k < 3; ++k) bins->starts[k][at[k]] += 1, bins->ends[k][at[k + 4]] += 1;
+            _mm_storeu_si128((__m128i *)(void *)at, _mm_cvttps_epi32(f));
+            _mm_storeu_si128((__m128i *)(void *)(at + 4), _mm_cvttps_epi32(g));
+            bins->starts[0][at[0]] += 1, bins->starts[1][at[1]] += 1, bins->starts[2][at[2]] += 1;
+            bins->ends[0][at[3]] += 1, bins->ends[1][at[6]] += 1, bins->ends[2][at[7]] += 1;
         }
         return;
     }
