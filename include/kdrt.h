@@ -2329,10 +2329,12 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
     const __m128d isect = _mm_set1_pd(c->isect), isect_empty = _mm_set1_pd(c->isect_empty);
     const __m128d inf = _mm_set1_pd(INFINITY);
     const __m128i zero = _mm_setzero_si128();
+    /* Children hold at most 2n: within a budget of that, every plane fits (the usual case). */
+    const int all_fit = 2 * (uint64_t)n <= c->budget;
     for (i = 0; i < planes; ++i) {
         sum += bins->starts[c->k][i], ended += bins->ends[c->k][i];
         below[i] = sum, above[i] = n - ended;
-        fits[i] = (uint64_t)sum + (n - ended) <= c->budget ? 0xFFFFFFFFu : 0u;
+        fits[i] = all_fit || (uint64_t)sum + (n - ended) <= c->budget ? 0xFFFFFFFFu : 0u;
     }
     for (; i % 4u; ++i) below[i] = above[i] = fits[i] = 0;
     for (i = 0; i < planes; i += 4) {
@@ -2347,9 +2349,10 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
         const __m128i ok = _mm_and_si128(
             _mm_loadu_si128((const __m128i *)(const void *)(fits + i)), _mm_castps_si128(inside));
         const __m128i empty = _mm_or_si128(_mm_cmpeq_epi32(nb, zero), _mm_cmpeq_epi32(na, zero));
+        const __m128d least = _mm_set1_pd(best->cost);
         float at_pos[4];
         double cost[4];
-        int h;
+        int h, cheaper = 0;
         for (h = 0; h < 2; ++h) { /* lanes 2h and 2h + 1, in double */
             const __m128d p = _mm_cvtps_pd(h ? _mm_movehl_ps(pos, pos) : pos);
             const __m128d e = _mm_castsi128_pd(h ? _mm_unpackhi_epi32(empty, empty)
@@ -2367,9 +2370,11 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
             const __m128d sah = _mm_add_pd(
                 trav, _mm_mul_pd(scale, _mm_add_pd(_mm_mul_pd(p_below, blocks_below),
                                                    _mm_mul_pd(p_above, blocks_above))));
-            _mm_storeu_pd(cost + 2 * h, _mm_or_pd(_mm_and_pd(valid, sah),
-                                                  _mm_andnot_pd(valid, inf)));
+            const __m128d kept = _mm_or_pd(_mm_and_pd(valid, sah), _mm_andnot_pd(valid, inf));
+            cheaper |= _mm_movemask_pd(_mm_cmplt_pd(kept, least));
+            _mm_storeu_pd(cost + 2 * h, kept);
         }
+        if (!cheaper) continue; /* the usual case: none beats the best so far */
         _mm_storeu_ps(at_pos, pos);
         for (j = 0; j < 4; ++j) /* in order, the first of equal costs kept, as in the scalar loop */
             if (cost[j] < best->cost)
