@@ -2420,14 +2420,14 @@ static double kdrt__half_area(const float lo[3], const float hi[3])
 
 /* Which side of the plane a reference lies on: KDRT__SIDE_BELOW, _ABOVE, or both when the plane
    cuts its box. */
-static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
+static unsigned kdrt__ref_side(const kdrt__ref *r, int axis, float pos, unsigned planar_side)
 {
-    /* Without branches: which side is all but random from one reference to the next. */
-    const float l = r->lo[plane->axis], h = r->hi[plane->axis], pos = plane->pos;
-    const unsigned planar = (unsigned)(l == pos) & (unsigned)(h == pos);
-    const unsigned below = (unsigned)(l < pos) | (planar & (unsigned)(plane->planar_below != 0));
-    const unsigned above = (unsigned)(h > pos) | (planar & (unsigned)(plane->planar_below == 0));
-    return below * KDRT__SIDE_BELOW | above * KDRT__SIDE_ABOVE;
+    /* Without branches: which side is all but random from one reference to the next. A box
+       (lo <= hi) on neither side lies in the plane, and goes to planar_side. */
+    const float l = r->lo[axis], h = r->hi[axis];
+    const unsigned side =
+        (unsigned)(l < pos) * KDRT__SIDE_BELOW | (unsigned)(h > pos) * KDRT__SIDE_ABOVE;
+    return side | (unsigned)(side == 0) * planar_side;
 }
 
 /* The children's references, in arrays from the arena (or, with no arena, at the top of a
@@ -2443,12 +2443,17 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
                                     float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2],
                                     unsigned char *sides, uint32_t *index[2])
 {
-    uint32_t room[2] = {0, 0}, r, c;
+    /* The plane in locals: the compiler cannot tell the children's writes from it. */
+    const int axis = plane->axis;
+    const float pos = plane->pos;
+    const unsigned planar_side = plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
+    uint32_t room[2] = {0, 0}, kept[2] = {0, 0}, r, c;
+    kdrt__ref *below, *above;
     if (bound[0] != KDRT_INVALID_ID && bound[1] != KDRT_INVALID_ID) {
         room[0] = bound[0], room[1] = bound[1];
     } else {
         for (r = 0; r < n; ++r) {
-            unsigned side = kdrt__ref_side(&refs[r], plane);
+            unsigned side = kdrt__ref_side(&refs[r], axis, pos, planar_side);
             room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
         }
     }
@@ -2460,40 +2465,43 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
         if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
         count[c] = 0;
     }
+    /* In locals, as the plane is: written through, they would be read again every time. */
+    below = child[0], above = child[1];
     for (r = 0; r < n; ++r) {
-        unsigned side = kdrt__ref_side(&refs[r], plane), into = side;
+        const kdrt__ref *ref = &refs[r];
+        unsigned side = kdrt__ref_side(ref, axis, pos, planar_side), into = side;
         float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
         if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) {
             /* Most references: copied to both, kept where they lie, without a branch (the spare
                slot takes the write past the last kept one). */
             const uint32_t keep_below = side & KDRT__SIDE_BELOW, keep_above = side >> 1;
-            child[0][count[0]] = refs[r], child[1][count[1]] = refs[r];
+            below[kept[0]] = *ref, above[kept[1]] = *ref;
             if (sides) {
-                index[0][r] = keep_below ? count[0] : KDRT_INVALID_ID;
-                index[1][r] = keep_above ? count[1] : KDRT_INVALID_ID;
+                index[0][r] = keep_below ? kept[0] : KDRT_INVALID_ID;
+                index[1][r] = keep_above ? kept[1] : KDRT_INVALID_ID;
             }
-            count[0] += keep_below, count[1] += keep_above;
+            kept[0] += keep_below, kept[1] += keep_above;
             continue;
         }
         if (b->clip) {
-            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo,
-                                    child_hi, lo, hi);
+            into = kdrt__clip_split(b->mesh, ref->tri, axis, pos, child_lo, child_hi, lo, hi);
         } else {
             /* The box split at the plane, each part kept by the side it lies on. */
-            memcpy(lo[0], refs[r].lo, sizeof lo[0]), memcpy(hi[0], refs[r].hi, sizeof hi[0]);
-            memcpy(lo[1], refs[r].lo, sizeof lo[1]), memcpy(hi[1], refs[r].hi, sizeof hi[1]);
-            hi[0][plane->axis] = lo[1][plane->axis] = plane->pos;
+            memcpy(lo[0], ref->lo, sizeof lo[0]), memcpy(hi[0], ref->hi, sizeof hi[0]);
+            memcpy(lo[1], ref->lo, sizeof lo[1]), memcpy(hi[1], ref->hi, sizeof hi[1]);
+            hi[0][axis] = lo[1][axis] = pos;
         }
         for (c = 0; c < 2; ++c) {
-            kdrt__ref *out = &child[c][count[c]];
-            if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
+            kdrt__ref *out = &child[c][kept[c]];
+            if (sides) index[c][r] = (into >> c) & 1u ? kept[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
             memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
-            out->tri = refs[r].tri;
-            ++count[c];
+            out->tri = ref->tri;
+            ++kept[c];
         }
     }
+    count[0] = kept[0], count[1] = kept[1];
     KDRT_ASSERT(count[0] <= room[0] && count[1] <= room[1]);
     return KDRT_SUCCESS;
 }
