@@ -2275,37 +2275,150 @@ static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const flo
     }
 }
 
+/* The bin of position x on axis k. */
+static uint32_t kdrt__bin_at(const kdrt__bins *bins, int k, float x)
+{
+    return kdrt__bin((x - bins->lo[k]) * bins->scale[k], bins->top);
+}
+
 /* Counts refs[0..n) into bins. SSE2 bins a reference's three axes at once, each lane rounding
    and clamping as kdrt__bin does (max returns its second operand for NaN, which kdrt__bin sends
    to 0 too), so the bins and the tree are the same either way. */
 static void kdrt__bin_refs(const kdrt__ref *refs, uint32_t n, kdrt__bins *bins)
 {
-    const float last = bins->top;
     uint32_t r;
     int k;
 #if KDRT__SSE2
     if (bins->sse) {
-        const __m128 lo = _mm_loadu_ps(bins->lo), scale = _mm_loadu_ps(bins->scale);
-        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(last);
+        /* The reference's six floats as two overlapping loads, lo[0..2] hi[0] and lo[2] hi[0..2]
+           (never its triangle number, whose bits would be a subnormal float), each lane with
+           its axis's offset and scale. */
+        const __m128 lo_a = _mm_setr_ps(bins->lo[0], bins->lo[1], bins->lo[2], bins->lo[0]);
+        const __m128 lo_b = _mm_setr_ps(bins->lo[2], bins->lo[0], bins->lo[1], bins->lo[2]);
+        const __m128 scale_a =
+            _mm_setr_ps(bins->scale[0], bins->scale[1], bins->scale[2], bins->scale[0]);
+        const __m128 scale_b =
+            _mm_setr_ps(bins->scale[2], bins->scale[0], bins->scale[1], bins->scale[2]);
+        const __m128 zero = _mm_setzero_ps(), top = _mm_set1_ps(bins->top);
         for (r = 0; r < n; ++r) {
-            /* Lanes 0 to 2 are x, y, z; lane 3 reads the next field of the reference, unused. */
-            uint32_t at[8]; /* the bins of lo[0..2], then of hi[0..2] from 4 */
-            __m128 f = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo), lo), scale);
-            __m128 g = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].hi), lo), scale);
+            uint32_t at[8]; /* starts x, y, z, end x; then start z, ends x, y, z */
+            __m128 f = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo), lo_a), scale_a);
+            __m128 g = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(refs[r].lo + 2), lo_b), scale_b);
             f = _mm_min_ps(_mm_max_ps(f, zero), top), g = _mm_min_ps(_mm_max_ps(g, zero), top);
-            _mm_storeu_si128((__m128i *)at, _mm_cvttps_epi32(f));
-            _mm_storeu_si128((__m128i *)(at + 4), _mm_cvttps_epi32(g));
-            for (k = 0; k < 3; ++k) bins->starts[k][at[k]] += 1, bins->ends[k][at[k + 4]] += 1;
+            _mm_storeu_si128((__m128i *)(void *)at, _mm_cvttps_epi32(f));
+            _mm_storeu_si128((__m128i *)(void *)(at + 4), _mm_cvttps_epi32(g));
+            bins->starts[0][at[0]] += 1, bins->starts[1][at[1]] += 1, bins->starts[2][at[2]] += 1;
+            bins->ends[0][at[3]] += 1, bins->ends[1][at[6]] += 1, bins->ends[2][at[7]] += 1;
         }
         return;
     }
 #endif
     for (r = 0; r < n; ++r)
         for (k = 0; k < 3; ++k) {
-            bins->starts[k][kdrt__bin((refs[r].lo[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
-            bins->ends[k][kdrt__bin((refs[r].hi[k] - bins->lo[k]) * bins->scale[k], last)] += 1;
+            bins->starts[k][kdrt__bin_at(bins, k, refs[r].lo[k])] += 1;
+            bins->ends[k][kdrt__bin_at(bins, k, refs[r].hi[k])] += 1;
         }
 }
+
+/* Bounds on what each child of plane will hold, from the bins of a node of n references: the
+   references are then split in one pass, without counting them first. A position's bin never
+   falls as the position grows (a subtraction and a product by a scale >= 0, each rounded, then
+   clamped and truncated), so a reference that reaches below the plane starts in the plane's bin
+   or before, and one that reaches above it ends in the plane's bin or after. A bin of slack
+   each side keeps the bound safe (the split writes up to it) should a position ever be binned
+   a bin off, by a compiler's rounding, here and in kdrt__bin_refs. */
+static void kdrt__bins_room(const kdrt__bins *bins, uint32_t n, const kdrt__plane *plane,
+                            uint32_t room[2])
+{
+    const int k = plane->axis;
+    const uint32_t at = kdrt__bin_at(bins, k, plane->pos);
+    uint32_t i, below = 0, ended = 0;
+    for (i = 0; i <= at + 1u && i < bins->count; ++i) below += bins->starts[k][i];
+    for (i = 0; i + 2u <= at; ++i) ended += bins->ends[k][i];
+    room[0] = below, room[1] = n - ended;
+}
+
+#if KDRT__SSE2
+/* Blocks of 8 (kdrt__leaf_blocks) of 4 counts: n / 8, plus one for a remainder, no overflow. */
+static __m128i kdrt__blocks_sse2(__m128i n)
+{
+    const __m128i seven = _mm_set1_epi32(7);
+    return _mm_add_epi32(_mm_srli_epi32(n, 3),
+                         _mm_srli_epi32(_mm_add_epi32(_mm_and_si128(n, seven), seven), 3));
+}
+
+/* Costs the planes between the bins on one axis of a node of n references 4 at a time, by the
+   operations of kdrt__consider (no planars) in the same order, each rounding as there
+   (contraction is off): the costs, and so the plane kept, are the scalar loop's bit for bit. */
+static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bins, uint32_t n,
+                                  kdrt__plane *best)
+{
+    /* Each plane's counts below and above, and whether they fit the budget, padded to 4. */
+    uint32_t below[KDRT_SAH_BINS + 3], above[KDRT_SAH_BINS + 3], fits[KDRT_SAH_BINS + 3];
+    uint32_t i, j, sum = 0, ended = 0;
+    const uint32_t planes = bins->count - 1u;
+    const __m128 lo = _mm_set1_ps(c->lo), hi = _mm_set1_ps(c->hi);
+    const __m128 length = _mm_set1_ps(c->hi - c->lo), count = _mm_set1_ps((float)bins->count);
+    const __m128d lo_d = _mm_set1_pd((double)c->lo), hi_d = _mm_set1_pd((double)c->hi);
+    const __m128d cap = _mm_set1_pd(c->cap), side = _mm_set1_pd(c->side);
+    const __m128d inv_area = _mm_set1_pd(c->inv_area), trav = _mm_set1_pd(c->trav);
+    const __m128d isect = _mm_set1_pd(c->isect), isect_empty = _mm_set1_pd(c->isect_empty);
+    const __m128d inf = _mm_set1_pd(INFINITY);
+    const __m128i zero = _mm_setzero_si128();
+    /* Children hold at most 2n: within a budget of that, every plane fits (the usual case). */
+    const int all_fit = 2 * (uint64_t)n <= c->budget;
+    for (i = 0; i < planes; ++i) {
+        sum += bins->starts[c->k][i], ended += bins->ends[c->k][i];
+        below[i] = sum, above[i] = n - ended;
+        fits[i] = all_fit || (uint64_t)sum + (n - ended) <= c->budget ? 0xFFFFFFFFu : 0u;
+    }
+    for (; i % 4u; ++i) below[i] = above[i] = fits[i] = 0;
+    for (i = 0; i < planes; i += 4) {
+        const __m128i nb = _mm_loadu_si128((const __m128i *)(const void *)(below + i));
+        const __m128i na = _mm_loadu_si128((const __m128i *)(const void *)(above + i));
+        const __m128i bb = kdrt__blocks_sse2(nb), ba = kdrt__blocks_sse2(na);
+        const __m128 at =
+            _mm_cvtepi32_ps(_mm_setr_epi32((int)i + 1, (int)i + 2, (int)i + 3, (int)i + 4));
+        const __m128 pos = _mm_add_ps(lo, _mm_mul_ps(length, _mm_div_ps(at, count)));
+        /* Inside the box (not on a face, not NaN) and within the budget. */
+        const __m128 inside = _mm_and_ps(_mm_cmpgt_ps(pos, lo), _mm_cmplt_ps(pos, hi));
+        const __m128i ok = _mm_and_si128(
+            _mm_loadu_si128((const __m128i *)(const void *)(fits + i)), _mm_castps_si128(inside));
+        const __m128i empty = _mm_or_si128(_mm_cmpeq_epi32(nb, zero), _mm_cmpeq_epi32(na, zero));
+        const __m128d least = _mm_set1_pd(best->cost);
+        float at_pos[4];
+        double cost[4];
+        int h, cheaper = 0;
+        for (h = 0; h < 2; ++h) { /* lanes 2h and 2h + 1, in double */
+            const __m128d p = _mm_cvtps_pd(h ? _mm_movehl_ps(pos, pos) : pos);
+            const __m128d e = _mm_castsi128_pd(h ? _mm_unpackhi_epi32(empty, empty)
+                                                 : _mm_unpacklo_epi32(empty, empty));
+            const __m128d valid =
+                _mm_castsi128_pd(h ? _mm_unpackhi_epi32(ok, ok) : _mm_unpacklo_epi32(ok, ok));
+            const __m128d blocks_below = _mm_cvtepi32_pd(h ? _mm_srli_si128(bb, 8) : bb);
+            const __m128d blocks_above = _mm_cvtepi32_pd(h ? _mm_srli_si128(ba, 8) : ba);
+            const __m128d p_below =
+                _mm_mul_pd(_mm_add_pd(cap, _mm_mul_pd(_mm_sub_pd(p, lo_d), side)), inv_area);
+            const __m128d p_above =
+                _mm_mul_pd(_mm_add_pd(cap, _mm_mul_pd(_mm_sub_pd(hi_d, p), side)), inv_area);
+            const __m128d scale =
+                _mm_or_pd(_mm_and_pd(e, isect_empty), _mm_andnot_pd(e, isect));
+            const __m128d sah = _mm_add_pd(
+                trav, _mm_mul_pd(scale, _mm_add_pd(_mm_mul_pd(p_below, blocks_below),
+                                                   _mm_mul_pd(p_above, blocks_above))));
+            const __m128d kept = _mm_or_pd(_mm_and_pd(valid, sah), _mm_andnot_pd(valid, inf));
+            cheaper |= _mm_movemask_pd(_mm_cmplt_pd(kept, least));
+            _mm_storeu_pd(cost + 2 * h, kept);
+        }
+        if (!cheaper) continue; /* the usual case: none beats the best so far */
+        _mm_storeu_ps(at_pos, pos);
+        for (j = 0; j < 4; ++j) /* in order, the first of equal costs kept, as in the scalar loop */
+            if (cost[j] < best->cost)
+                best->axis = c->k, best->pos = at_pos[j], best->planar_below = 1,
+                best->cost = cost[j];
+    }
+}
+#endif
 
 /* The planes between bins of a node of n references, costed from the bins' counts. */
 static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uint32_t n,
@@ -2319,6 +2432,12 @@ static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uin
         kdrt__axis_cost cost;
         if (bins->scale[k] == 0.0f) continue;
         cost = kdrt__axis_setup(b, k, lo, hi, inv_area, budget);
+#if KDRT__SSE2
+        if (bins->sse) {
+            kdrt__bins_costs_sse2(&cost, bins, n, best);
+            continue;
+        }
+#endif
         for (i = 1; i < bins->count; ++i) {
             below += bins->starts[k][i - 1], ended += bins->ends[k][i - 1];
             kdrt__consider(&cost, best, lo[k] + (hi[k] - lo[k]) * ((float)i / (float)bins->count),
@@ -2337,30 +2456,42 @@ static double kdrt__half_area(const float lo[3], const float hi[3])
 
 /* Which side of the plane a reference lies on: KDRT__SIDE_BELOW, _ABOVE, or both when the plane
    cuts its box. */
-static unsigned kdrt__ref_side(const kdrt__ref *r, const kdrt__plane *plane)
+static unsigned kdrt__ref_side(const kdrt__ref *r, int axis, float pos, unsigned planar_side)
 {
-    /* Without branches: which side is all but random from one reference to the next. */
-    const float l = r->lo[plane->axis], h = r->hi[plane->axis], pos = plane->pos;
-    const unsigned planar = (unsigned)(l == pos) & (unsigned)(h == pos);
-    const unsigned below = (unsigned)(l < pos) | (planar & (unsigned)(plane->planar_below != 0));
-    const unsigned above = (unsigned)(h > pos) | (planar & (unsigned)(plane->planar_below == 0));
-    return below * KDRT__SIDE_BELOW | above * KDRT__SIDE_ABOVE;
+    /* Without branches: which side is all but random from one reference to the next. A box
+       (lo <= hi) on neither side lies in the plane, and goes to planar_side. */
+    const float l = r->lo[axis], h = r->hi[axis];
+    const unsigned side =
+        (unsigned)(l < pos) * KDRT__SIDE_BELOW | (unsigned)(h > pos) * KDRT__SIDE_ABOVE;
+    return side | (unsigned)(side == 0) * planar_side;
 }
 
 /* The children's references, in arrays from the arena (or, with no arena, at the top of a
    parallel build, from the allocator): a reference on one side is copied, one the plane cuts is
    split by kdrt__clip_split (perfect splits) and goes only where some of the triangle lies, or
-   (FAST, no clipping) has its box cut at the plane. When sides is not NULL it gets each
-   reference's side, and index[c] where it went in child c (or KDRT_INVALID_ID). */
+   (FAST, no clipping) has its box cut at the plane. bound[c] is at least what child c gets
+   (kdrt__bins_room), or KDRT_INVALID_ID: then the sides are counted first. When sides is not
+   NULL it gets each reference's side, and index[c] where it went in child c (or
+   KDRT_INVALID_ID). */
 static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
                                     const kdrt__ref *refs, uint32_t n, const kdrt__plane *plane,
-                                    float child_lo[2][3], float child_hi[2][3], kdrt__ref *child[2],
-                                    uint32_t count[2], unsigned char *sides, uint32_t *index[2])
+                                    const uint32_t bound[2], float child_lo[2][3],
+                                    float child_hi[2][3], kdrt__ref *child[2], uint32_t count[2],
+                                    unsigned char *sides, uint32_t *index[2])
 {
-    uint32_t room[2] = {0, 0}, r, c;
-    for (r = 0; r < n; ++r) {
-        unsigned side = kdrt__ref_side(&refs[r], plane);
-        room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
+    /* The plane in locals: the compiler cannot tell the children's writes from it. */
+    const int axis = plane->axis;
+    const float pos = plane->pos;
+    const unsigned planar_side = plane->planar_below ? KDRT__SIDE_BELOW : KDRT__SIDE_ABOVE;
+    uint32_t room[2] = {0, 0}, kept[2] = {0, 0}, r, c;
+    kdrt__ref *below, *above;
+    if (bound[0] != KDRT_INVALID_ID && bound[1] != KDRT_INVALID_ID) {
+        room[0] = bound[0], room[1] = bound[1];
+    } else {
+        for (r = 0; r < n; ++r) {
+            unsigned side = kdrt__ref_side(&refs[r], axis, pos, planar_side);
+            room[0] += side & KDRT__SIDE_BELOW, room[1] += side >> 1;
+        }
     }
     for (c = 0; c < 2; ++c) {
         /* One to spare: a reference is written to both sides and kept on its own. */
@@ -2370,40 +2501,44 @@ static kdrt_result kdrt__split_refs(const kdrt__builder *b, kdrt__arena *arena,
         if (!child[c]) return KDRT_ERROR_OUT_OF_MEMORY;
         count[c] = 0;
     }
+    /* In locals, as the plane is: written through, they would be read again every time. */
+    below = child[0], above = child[1];
     for (r = 0; r < n; ++r) {
-        unsigned side = kdrt__ref_side(&refs[r], plane), into = side;
+        const kdrt__ref *ref = &refs[r];
+        unsigned side = kdrt__ref_side(ref, axis, pos, planar_side), into = side;
         float lo[2][3], hi[2][3];
         if (sides) sides[r] = (unsigned char)side;
         if (side != (KDRT__SIDE_BELOW | KDRT__SIDE_ABOVE)) {
             /* Most references: copied to both, kept where they lie, without a branch (the spare
                slot takes the write past the last kept one). */
             const uint32_t keep_below = side & KDRT__SIDE_BELOW, keep_above = side >> 1;
-            child[0][count[0]] = refs[r], child[1][count[1]] = refs[r];
+            below[kept[0]] = *ref, above[kept[1]] = *ref;
             if (sides) {
-                index[0][r] = keep_below ? count[0] : KDRT_INVALID_ID;
-                index[1][r] = keep_above ? count[1] : KDRT_INVALID_ID;
+                index[0][r] = keep_below ? kept[0] : KDRT_INVALID_ID;
+                index[1][r] = keep_above ? kept[1] : KDRT_INVALID_ID;
             }
-            count[0] += keep_below, count[1] += keep_above;
+            kept[0] += keep_below, kept[1] += keep_above;
             continue;
         }
         if (b->clip) {
-            into = kdrt__clip_split(b->mesh, refs[r].tri, plane->axis, plane->pos, child_lo,
-                                    child_hi, lo, hi);
+            into = kdrt__clip_split(b->mesh, ref->tri, axis, pos, child_lo, child_hi, lo, hi);
         } else {
             /* The box split at the plane, each part kept by the side it lies on. */
-            memcpy(lo[0], refs[r].lo, sizeof lo[0]), memcpy(hi[0], refs[r].hi, sizeof hi[0]);
-            memcpy(lo[1], refs[r].lo, sizeof lo[1]), memcpy(hi[1], refs[r].hi, sizeof hi[1]);
-            hi[0][plane->axis] = lo[1][plane->axis] = plane->pos;
+            memcpy(lo[0], ref->lo, sizeof lo[0]), memcpy(hi[0], ref->hi, sizeof hi[0]);
+            memcpy(lo[1], ref->lo, sizeof lo[1]), memcpy(hi[1], ref->hi, sizeof hi[1]);
+            hi[0][axis] = lo[1][axis] = pos;
         }
         for (c = 0; c < 2; ++c) {
-            kdrt__ref *out = &child[c][count[c]];
-            if (sides) index[c][r] = (into >> c) & 1u ? count[c] : KDRT_INVALID_ID;
+            kdrt__ref *out = &child[c][kept[c]];
+            if (sides) index[c][r] = (into >> c) & 1u ? kept[c] : KDRT_INVALID_ID;
             if (!((into >> c) & 1u)) continue;
             memcpy(out->lo, lo[c], sizeof out->lo), memcpy(out->hi, hi[c], sizeof out->hi);
-            out->tri = refs[r].tri;
-            ++count[c];
+            out->tri = ref->tri;
+            ++kept[c];
         }
     }
+    count[0] = kept[0], count[1] = kept[1];
+    KDRT_ASSERT(count[0] <= room[0] && count[1] <= room[1]);
     return KDRT_SUCCESS;
 }
 
@@ -2484,21 +2619,25 @@ static kdrt_result kdrt__bin_refs_chunked(const kdrt__builder *b, const kdrt_sch
 /* The node's split, or axis -1 for a leaf: at most max_leaf_size triangles, at max_depth, or no
    plane within the budget cheaper than testing all n (cost-based termination). With events (the
    exact region) every candidate is tried; without, the bins choose, and where they find nothing
-   worth a split every candidate is tried before the node is made a leaf. */
+   worth a split every candidate is tried before the node is made a leaf. room gets bounds on
+   the children's sizes where the node was binned (kdrt__bins_room), else KDRT_INVALID_ID. */
 static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena,
                                       const kdrt_scheduler *scheduler, const kdrt__ref *refs,
                                       uint32_t n, const kdrt__events *events, const float lo[3],
                                       const float hi[3], uint32_t depth, uint32_t budget,
-                                      kdrt__plane *best)
+                                      kdrt__plane *best, uint32_t room[2])
 {
     kdrt__bins bins;
     double area = kdrt__half_area(lo, hi), leaf_cost = (double)b->sah_isect * kdrt__leaf_blocks(n);
+    int binned = 0;
     best->axis = -1, best->pos = 0.0f, best->planar_below = 1, best->cost = INFINITY;
+    room[0] = room[1] = KDRT_INVALID_ID;
     if (n <= b->max_leaf_size || depth >= b->max_depth || !(area > 0.0)) return KDRT_SUCCESS;
     if (events) {
         kdrt__sweep_axes(b, events, n, lo, hi, 1.0 / area, budget, best);
     } else {
         if (b->exact_max < n || n > KDRT__EVENT_REF_MASK) {
+            binned = 1;
             kdrt__bins_init(b, lo, hi, &bins);
             if (scheduler && scheduler->run && n >= KDRT__CHUNK_MIN_REFS) {
                 if (kdrt__bin_refs_chunked(b, scheduler, refs, n, lo, hi, &bins) != KDRT_SUCCESS)
@@ -2518,6 +2657,7 @@ static kdrt_result kdrt__choose_plane(const kdrt__builder *b, kdrt__arena *arena
         }
     }
     if (!(best->cost < leaf_cost)) best->axis = -1;
+    else if (binned) kdrt__bins_room(&bins, n, best, room);
     return KDRT_SUCCESS;
 }
 
@@ -2595,6 +2735,7 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
     kdrt__events entry, child_events[2];
     unsigned char *sides = NULL;
     uint32_t node = 0, count[2] = {0, 0}, child_budget[2] = {0, 0}, *index[2] = {NULL, NULL}, i;
+    uint32_t room[2] = {KDRT_INVALID_ID, KDRT_INVALID_ID};
     float child_lo[2][3], child_hi[2][3];
     kdrt__plane plane;
     kdrt_result r = KDRT_SUCCESS;
@@ -2613,7 +2754,8 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
                           b->node_count + 1, sizeof(kdrt__node));
     if (r == KDRT_SUCCESS) {
         node = b->node_count++;
-        r = kdrt__choose_plane(b, arena, NULL, refs, n, events, lo, hi, depth, budget, &plane);
+        r = kdrt__choose_plane(b, arena, NULL, refs, n, events, lo, hi, depth, budget, &plane,
+                               room);
     }
     if (r == KDRT_SUCCESS && plane.axis >= 0) {
         kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
@@ -2624,8 +2766,8 @@ static kdrt_result kdrt__sah_node(kdrt__builder *b, kdrt__arena *arena, kdrt__re
             if (!sides || !index[0] || !index[1]) r = KDRT_ERROR_OUT_OF_MEMORY;
         }
         if (r == KDRT_SUCCESS)
-            r = kdrt__split_refs(b, binned ? NULL : arena, refs, n, &plane, child_lo, child_hi,
-                                 child, count, sides, index);
+            r = kdrt__split_refs(b, binned ? NULL : arena, refs, n, &plane, room, child_lo,
+                                 child_hi, child, count, sides, index);
         /* The bins' counts can be off by a reference or two: the real ones decide. */
         if (r == KDRT_SUCCESS && !kdrt__share_budget(budget, count, child_budget)) plane.axis = -1;
     }
@@ -2708,6 +2850,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
     kdrt__ref *child[2] = {NULL, NULL};
     kdrt__events child_events[2];
     uint32_t node = top->node_count++, count[2] = {0, 0}, child_budget[2] = {0, 0};
+    uint32_t room[2] = {KDRT_INVALID_ID, KDRT_INVALID_ID};
     uint32_t *index[2] = {NULL, NULL};
     unsigned char *sides = NULL;
     float child_lo[2][3], child_hi[2][3];
@@ -2721,7 +2864,7 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
     kdrt__arena_init(&arena, b->allocator);
     if (n > KDRT__TASK_MIN_REFS && depth < KDRT__TASK_DEPTH)
         r = kdrt__choose_plane(b, &arena, scheduler, refs, n, events, lo, hi, depth, budget,
-                               &plane);
+                               &plane, room);
     if (r == KDRT_SUCCESS && plane.axis >= 0) {
         kdrt__child_boxes(lo, hi, &plane, child_lo, child_hi);
         if (events) {
@@ -2731,8 +2874,8 @@ static kdrt_result kdrt__sah_top(const kdrt__builder *b, const kdrt_scheduler *s
             if (!sides || !index[0] || !index[1]) r = KDRT_ERROR_OUT_OF_MEMORY;
         }
         if (r == KDRT_SUCCESS)
-            r = kdrt__split_refs(b, NULL, refs, n, &plane, child_lo, child_hi, child, count, sides,
-                                 index);
+            r = kdrt__split_refs(b, NULL, refs, n, &plane, room, child_lo, child_hi, child, count,
+                                 sides, index);
         if (r == KDRT_SUCCESS && !kdrt__share_budget(budget, count, child_budget)) {
             kdrt__free(b->allocator, child[0]), kdrt__free(b->allocator, child[1]);
             child[0] = child[1] = NULL;
