@@ -31,3 +31,17 @@ function(check_whole_rows file min_rows)
   endif()
   set(ROWS ${rows} PARENT_SCOPE)
 endfunction()
+
+# read_csv_rows(FILE HEADER): FILE's rows after a header that must be HEADER, with '|' for ';'
+# (which separates CMake list items too). Sets LINES in the caller to the list of rows.
+function(read_csv_rows file expected_header)
+  file(READ "${file}" text)
+  string(REPLACE ";" "|" text "${text}")
+  string(STRIP "${text}" text)
+  string(REPLACE "\n" ";" lines "${text}")
+  list(POP_FRONT lines header)
+  if(NOT header STREQUAL "${expected_header}")
+    message(FATAL_ERROR "${file}: bad header: ${header}")
+  endif()
+  set(LINES "${lines}" PARENT_SCOPE)
+endfunction()
