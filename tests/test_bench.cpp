@@ -22,6 +22,20 @@ bool parse(std::vector<const char *> args, kb::Options &opt, std::string &error)
     return kb::parse_options(int(args.size()), args.data(), opt, error);
 }
 
+// Each command line of bad is refused, with a message that names one of its options.
+void check_refused(const std::vector<std::vector<const char *>> &bad) {
+    kb::Options opt;
+    std::string error;
+    for (const auto &args : bad) {
+        INFO(args[0] << " " << (args.size() > 1 ? args[1] : "") << " " << (args.size() > 2 ? args[2] : ""));
+        error.clear();
+        CHECK_FALSE(parse(args, opt, error));
+        bool named = false;
+        for (const char *arg : args) named = named || (arg[0] == '-' && error.find(arg) != std::string::npos);
+        CHECK(named);
+    }
+}
+
 std::vector<std::string> split(const std::string &line, char sep) {
     std::vector<std::string> fields;
     std::stringstream in(line);
@@ -603,15 +617,7 @@ TEST_CASE("bench option --batch: the calls, a row each, and the rays in tiles", 
         {"--batch-size", "0"},     {"--batch-size", "x"},   {"--batch-size", "64"},  // without the batch calls
         {"--tile", "4"},           {"--tile", "0x2"},       {"--tile", "4x300"},
         {"--accuracy", "--batch", "batch"}, {"--accuracy", "--shuffle"}, {"--scene", "merged", "--tile", "4x2"}};
-    for (const auto &args : bad) {
-        INFO(args[0] << " " << (args.size() > 1 ? args[1] : ""));
-        error.clear();
-        CHECK_FALSE(parse(args, opt, error));
-        const bool named = std::any_of(args.begin(), args.end(), [&](const char *a) {
-            return a[0] == '-' && error.find(a) != std::string::npos;
-        });
-        CHECK(named);
-    }
+    check_refused(bad);
 }
 
 TEST_CASE("bench option --kernel: a variant of every kdrt build per kernel, named in Kernel", "[bench]") {
@@ -902,14 +908,7 @@ TEST_CASE("bench option --scene: merged, field, their options, and what does not
         {"--instances", "5"},         {"--scene", "merged", "--instances", "5"},  // only the field has instances
         {"--scene", "field", "--accuracy"}, {"--scene", "merged", "--rays", "shadow"},
         {"--scene", "merged", "--leaf-sizes", "4"}, {"--scene", "field", "--builder", "sah"}};
-    for (const auto &args : bad) {
-        INFO(args[0] << " " << (args.size() > 1 ? args[1] : "") << " " << (args.size() > 2 ? args[2] : ""));
-        error.clear();
-        CHECK_FALSE(parse(args, opt, error));
-        bool named = false;
-        for (const char *arg : args) named = named || (arg[0] == '-' && error.find(arg) != std::string::npos);
-        CHECK(named);
-    }
+    check_refused(bad);
 }
 
 TEST_CASE("scene worlds: unit-sized meshes, clustering, and their layouts as one mesh and as geometries", "[bench]") {
@@ -1077,14 +1076,7 @@ TEST_CASE("bench option --scene frames: its lists, --frames, and what does not a
         {"--scene", "frames", "--instances", "5,"}, {"--scene", "frames", "--repeat", "2"},
         {"--scene", "frames", "--threads", "2"}, {"--scene", "frames", "--instance-spacing", "1.5"},
         {"--scene", "frames", "--rays", "shadow"}, {"--scene", "frames", "--accuracy"}};
-    for (const auto &args : bad) {
-        INFO(args[0] << " " << (args.size() > 1 ? args[1] : "") << " " << (args.size() > 2 ? args[2] : ""));
-        error.clear();
-        CHECK_FALSE(parse(args, opt, error));
-        bool named = false;
-        for (const char *arg : args) named = named || (arg[0] == '-' && error.find(arg) != std::string::npos);
-        CHECK(named);
-    }
+    check_refused(bad);
 }
 
 TEST_CASE("the frames world: IDs, moves, the deformed mesh and the rows", "[bench]") {
