@@ -48,7 +48,7 @@ include=(-isystem "$root/tests/platforms/msvc-libc" -I"$root/include")
 # What an MSVC program's link resolves from the CRT (the UCRT, vcruntime) for kdrt: its libc
 # calls, and what clang emits for MSVC itself (_fltused: floats in use; __chkstk: frames of more
 # than a page, the batches'; _wassert: assert). Nothing else may be undefined.
-crt_symbols=" _fltused __chkstk _wassert malloc free qsort memcpy memset sqrt fma fabs "
+crt_symbols=" _fltused __chkstk _wassert malloc free qsort memcmp memcpy memmove memset sqrt fma fabs "
 
 printf '#define KDRT_IMPLEMENTATION\n#include "kdrt.h"\n' >"$work/clang_cl.c"
 
