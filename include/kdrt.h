@@ -56,6 +56,9 @@
        KDRT_NO_SIMD              leave the SIMD kernels (AVX2, AVX-512, NEON, SIMD128) and SSE2
                                  binning out: every tree runs the scalar kernel and is binned
                                  by scalar code (KERNELS)
+       KDRT_NO_AVX2              leave the AVX2 and AVX-512 code out (x86-64): every tree runs
+                                 the scalar kernel and is built with SSE2 alone, as on a CPU
+                                 without AVX2; for compilers without target attributes
        KDRT_HEADER_FILENAME      the name this header is included by, in quotes (default
                                  "kdrt.h"): the implementation includes itself once more for
                                  each packet width (KERNELS); set it when the file is renamed
@@ -300,8 +303,9 @@
      NEON kernel runs 2.1x (GCC 12) to 2.6x (Clang 14) fewer instructions a ray than the scalar
      kernel on aarch64, the SIMD128 kernel 2x the scalar kernel's rays a second under node 20
      (tests/platforms/count_instructions.sh, kernel_speed.c). The SAH builder bins references with
-     SSE2 on x86-64 (no attribute needed), each lane rounding as the scalar code does, so the tree
-     is the same; KDRT_BUILD_SCALAR_KERNEL bins with the scalar code too.
+     SSE2 on x86-64 (no attribute needed) and costs the planes between bins 8 at a time with AVX2
+     where the CPU has it (4 at a time with SSE2 where not), each lane rounding as the scalar code
+     does, so the tree is the same; KDRT_BUILD_SCALAR_KERNEL builds with the scalar code too.
 
    PLATFORMS
      The file with the implementation needs no flag anywhere: no -mavx2, -march or /arch.
@@ -573,8 +577,8 @@ typedef enum kdrt_build_flags {
     /* Leave out triangles with a NaN or infinite coordinate or an index out of range, and count
        them in kdrt_build_report.skipped_triangles, instead of failing the build. */
     KDRT_BUILD_SKIP_INVALID_TRIANGLES = 1u << 0,
-    /* Trace this tree with the scalar kernel even where the CPU has AVX2, and bin without SSE2
-       (KERNELS): the tree and the answers are the same bit for bit, so this is for comparing the
+    /* Trace this tree with the scalar kernel even where the CPU has AVX2, and build it without
+       SSE2 or AVX2 (KERNELS): the tree and the answers are the same bit for bit, so this is for comparing the
        SIMD and scalar code and measuring them. */
     KDRT_BUILD_SCALAR_KERNEL = 1u << 1,
     /* Trace this tree with the AVX2 kernel even where the CPU has AVX-512 (a batch's packets
@@ -1092,6 +1096,92 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #include <emmintrin.h>
 #endif
 
+/* One at most, by the target: the AVX2 kernel (and the AVX-512 one) on x86-64 with GCC, Clang,
+   clang-cl or MSVC (not ARM64EC, which emulates x64 code), the 4-wide kernel on aarch64 and on
+   WebAssembly with SIMD128; none under KDRT_NO_SIMD, and on x86-64 none under KDRT_NO_AVX2
+   (KERNELS, PLATFORMS). */
+#if !defined(KDRT_NO_SIMD) && !defined(KDRT_NO_AVX2) &&                                            \
+    ((defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))) ||                        \
+     (defined(_MSC_VER) && defined(_M_X64) && !defined(_M_ARM64EC)))
+#define KDRT__AVX2 1
+#elif !defined(KDRT_NO_SIMD) && (defined(__GNUC__) || defined(__clang__)) &&                       \
+    (defined(__aarch64__) || defined(__wasm_simd128__))
+#define KDRT__X4 1
+#endif
+
+#if defined(KDRT__AVX2)
+#include <immintrin.h>
+#if defined(_MSC_VER) && !defined(__clang__)
+/* cl.exe names each function with AVX code compiled without /arch:AVX (C4752): kdrt's run
+   only where the CPU check found AVX2. Popped at the end of the implementation. */
+#pragma warning(push)
+#pragma warning(disable : 4752)
+#endif
+#if defined(__GNUC__) || defined(__clang__)
+#define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
+/* The AVX-512 kernel: the AVX2 kernel, and a batch's packets 16 rays wide (BATCHES). */
+#define KDRT__TARGET_AVX512 __attribute__((target("avx2,avx512f")))
+#else
+#define KDRT__TARGET_AVX2
+#define KDRT__TARGET_AVX512
+#endif
+#if defined(_MSC_VER) && defined(__clang__)
+/* clang-cl's immintrin.h, unlike MSVC's, declares only the intrinsics the command line enables
+   (/arch): those of the target attributes are named here (SSE4.1's for _MM_FROUND_*). */
+#include <smmintrin.h>
+#include <avxintrin.h>
+#include <avx2intrin.h>
+#include <avx512fintrin.h>
+#endif
+
+#if defined(_MSC_VER)
+#include <intrin.h> /* __cpuid, __cpuidex, _BitScanForward */
+/* What __builtin_cpu_supports asks, from cpuid and xgetbv, with nothing beyond the CRT (clang-cl's
+   __builtin_cpu_supports needs compiler-rt, which MSVC links lack): 2 where the CPU has AVX2 and
+   AVX512F and the OS saves the ZMM registers, 1 where it has AVX2 and the OS saves the YMM ones,
+   else 0. */
+#if defined(__clang__)
+__attribute__((target("xsave")))
+#endif
+static int kdrt__cpu_vector_level(void)
+{
+    const unsigned osxsave_and_avx = 1u << 27 | 1u << 28; /* cpuid 1, ecx */
+    const unsigned avx2 = 1u << 5, avx512f = 1u << 16;    /* cpuid 7, ebx */
+    int info[4];
+    unsigned long long xcr0;
+    __cpuid(info, 0);
+    if (info[0] < 7) return 0;
+    __cpuid(info, 1);
+    if (((unsigned)info[2] & osxsave_and_avx) != osxsave_and_avx) return 0;
+    xcr0 = _xgetbv(0);
+    if ((xcr0 & 0x6u) != 0x6u) return 0; /* XCR0 bits 1, 2: the XMM and YMM registers */
+    __cpuidex(info, 7, 0);
+    if (!((unsigned)info[1] & avx2)) return 0;
+    /* bits 5, 6, 7: the mask registers, the ZMM registers' upper halves, ZMM16 to ZMM31 */
+    return ((unsigned)info[1] & avx512f) && (xcr0 & 0xE0u) == 0xE0u ? 2 : 1;
+}
+
+static int kdrt__cpu_has_avx2(void) { return kdrt__cpu_vector_level() >= 1; }
+static int kdrt__cpu_has_avx512(void) { return kdrt__cpu_vector_level() >= 2; }
+#else
+static int kdrt__cpu_has_avx2(void)
+{
+    __builtin_cpu_init(); /* idempotent; needed when called before constructors have run */
+    return __builtin_cpu_supports("avx2") != 0;
+}
+
+static int kdrt__cpu_has_avx512(void)
+{
+    __builtin_cpu_init(); /* also checks that the OS saves the AVX-512 registers */
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f");
+}
+#endif
+
+#else
+static int kdrt__cpu_has_avx2(void) { return 0; }
+static int kdrt__cpu_has_avx512(void) { return 0; }
+#endif
+
 #ifndef KDRT_ASSERT
 #include <assert.h>
 #define KDRT_ASSERT(x) assert(x)
@@ -1193,8 +1283,6 @@ typedef struct kdrt__block {
 
 typedef char kdrt__block_is_5_cache_lines[sizeof(kdrt__block) == 320 ? 1 : -1];
 
-static int kdrt__cpu_has_avx2(void); /* 1 where the AVX2 kernel is compiled in and can run */
-static int kdrt__cpu_has_avx512(void); /* the same for the AVX-512 kernel */
 /* KDRT_KERNEL_NEON or KDRT_KERNEL_SIMD128 where the 4-wide kernel is compiled in (no CPU check:
    the target has it), else KDRT_KERNEL_SCALAR. */
 static kdrt_kernel kdrt__kernel_x4(void);
@@ -1644,6 +1732,7 @@ typedef struct kdrt__builder {
     uint32_t exact_max, bins;
     int exact_fallback, clip;
     int sse; /* bins with SSE2 where compiled in; not with KDRT_BUILD_SCALAR_KERNEL */
+    int avx2; /* costs bins' planes with AVX2 where compiled in and the CPU has it; not scalar */
     kdrt__node *nodes;
     uint32_t node_count, node_capacity;
     uint32_t *refs;
@@ -2254,7 +2343,8 @@ static uint32_t kdrt__bin(float f, float top)
 /* A node's bins: per axis, how many references' boxes start and end in each bin. */
 typedef struct kdrt__bins {
     uint32_t count; /* bins per axis: b->bins */
-    int sse;        /* binned with SSE2 (kdrt__bin_refs) */
+    int sse;        /* binned and costed with SSE2 (kdrt__bin_refs, kdrt__bins_plane) */
+    int avx2;       /* costed with AVX2 */
     float top;      /* count - 1, the last bin */
     float lo[4], scale[4]; /* the node's box: bin of x = (x - lo) * scale, clamped; [3] unused */
     uint32_t starts[3][KDRT_SAH_BINS], ends[3][KDRT_SAH_BINS];
@@ -2265,7 +2355,7 @@ static void kdrt__bins_init(const kdrt__builder *b, const float lo[3], const flo
 {
     int k;
     bins->count = b->bins; /* at most KDRT_SAH_BINS */
-    bins->sse = b->sse, bins->top = (float)(b->bins - 1u);
+    bins->sse = b->sse, bins->avx2 = b->avx2, bins->top = (float)(b->bins - 1u);
     bins->lo[3] = bins->scale[3] = 0.0f;
     for (k = 0; k < 3; ++k) {
         bins->lo[k] = lo[k];
@@ -2347,15 +2437,32 @@ static __m128i kdrt__blocks_sse2(__m128i n)
                          _mm_srli_epi32(_mm_add_epi32(_mm_and_si128(n, seven), seven), 3));
 }
 
+/* The planes between the bins of one axis of a node of n references, from 1 to planes: how
+   many references each has below and above, and whether those fit the budget (all ones or 0),
+   padded with zeros to a multiple of 8. */
+static void kdrt__bins_counts(const kdrt__axis_cost *c, const kdrt__bins *bins, uint32_t n,
+                              uint32_t *below, uint32_t *above, uint32_t *fits)
+{
+    uint32_t i, sum = 0, ended = 0;
+    const uint32_t planes = bins->count - 1u;
+    /* Children hold at most 2n: within a budget of that, every plane fits (the usual case). */
+    const int all_fit = 2 * (uint64_t)n <= c->budget;
+    for (i = 0; i < planes; ++i) {
+        sum += bins->starts[c->k][i], ended += bins->ends[c->k][i];
+        below[i] = sum, above[i] = n - ended;
+        fits[i] = all_fit || (uint64_t)sum + (n - ended) <= c->budget ? 0xFFFFFFFFu : 0u;
+    }
+    for (; i % 8u; ++i) below[i] = above[i] = fits[i] = 0;
+}
+
 /* Costs the planes between the bins on one axis of a node of n references 4 at a time, by the
    operations of kdrt__consider (no planars) in the same order, each rounding as there
    (contraction is off): the costs, and so the plane kept, are the scalar loop's bit for bit. */
 static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bins, uint32_t n,
                                   kdrt__plane *best)
 {
-    /* Each plane's counts below and above, and whether they fit the budget, padded to 4. */
-    uint32_t below[KDRT_SAH_BINS + 3], above[KDRT_SAH_BINS + 3], fits[KDRT_SAH_BINS + 3];
-    uint32_t i, j, sum = 0, ended = 0;
+    uint32_t below[KDRT_SAH_BINS + 7], above[KDRT_SAH_BINS + 7], fits[KDRT_SAH_BINS + 7];
+    uint32_t i, j;
     const uint32_t planes = bins->count - 1u;
     const __m128 lo = _mm_set1_ps(c->lo), hi = _mm_set1_ps(c->hi);
     const __m128 length = _mm_set1_ps(c->hi - c->lo), count = _mm_set1_ps((float)bins->count);
@@ -2365,14 +2472,7 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
     const __m128d isect = _mm_set1_pd(c->isect), isect_empty = _mm_set1_pd(c->isect_empty);
     const __m128d inf = _mm_set1_pd(INFINITY);
     const __m128i zero = _mm_setzero_si128();
-    /* Children hold at most 2n: within a budget of that, every plane fits (the usual case). */
-    const int all_fit = 2 * (uint64_t)n <= c->budget;
-    for (i = 0; i < planes; ++i) {
-        sum += bins->starts[c->k][i], ended += bins->ends[c->k][i];
-        below[i] = sum, above[i] = n - ended;
-        fits[i] = all_fit || (uint64_t)sum + (n - ended) <= c->budget ? 0xFFFFFFFFu : 0u;
-    }
-    for (; i % 4u; ++i) below[i] = above[i] = fits[i] = 0;
+    kdrt__bins_counts(c, bins, n, below, above, fits);
     for (i = 0; i < planes; i += 4) {
         const __m128i nb = _mm_loadu_si128((const __m128i *)(const void *)(below + i));
         const __m128i na = _mm_loadu_si128((const __m128i *)(const void *)(above + i));
@@ -2420,6 +2520,85 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
 }
 #endif
 
+#if defined(KDRT__AVX2)
+/* kdrt__bins_costs_sse2 8 planes at a time, the doubles 4 at a time: the same operations in the
+   same order (the target has no FMA to fuse them), so the same costs bit for bit. */
+KDRT__TARGET_AVX2 static void kdrt__bins_costs_avx2(const kdrt__axis_cost *c,
+                                                    const kdrt__bins *bins, uint32_t n,
+                                                    kdrt__plane *best)
+{
+    uint32_t below[KDRT_SAH_BINS + 7], above[KDRT_SAH_BINS + 7], fits[KDRT_SAH_BINS + 7];
+    uint32_t i, j;
+    const uint32_t planes = bins->count - 1u;
+    const __m256 lo = _mm256_set1_ps(c->lo), hi = _mm256_set1_ps(c->hi);
+    const __m256 length = _mm256_set1_ps(c->hi - c->lo);
+    const __m256 count = _mm256_set1_ps((float)bins->count);
+    const __m256 first = _mm256_setr_ps(1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f, 8.0f);
+    const __m256d lo_d = _mm256_set1_pd((double)c->lo), hi_d = _mm256_set1_pd((double)c->hi);
+    const __m256d cap = _mm256_set1_pd(c->cap), side = _mm256_set1_pd(c->side);
+    const __m256d inv_area = _mm256_set1_pd(c->inv_area), trav = _mm256_set1_pd(c->trav);
+    const __m256d isect = _mm256_set1_pd(c->isect), isect_empty = _mm256_set1_pd(c->isect_empty);
+    const __m256d inf = _mm256_set1_pd(INFINITY);
+    const __m256i zero = _mm256_setzero_si256(), seven = _mm256_set1_epi32(7);
+    kdrt__bins_counts(c, bins, n, below, above, fits);
+    for (i = 0; i < planes; i += 8) {
+        const __m256i nb = _mm256_loadu_si256((const __m256i *)(const void *)(below + i));
+        const __m256i na = _mm256_loadu_si256((const __m256i *)(const void *)(above + i));
+        /* blocks of 8, as kdrt__blocks_sse2 */
+        const __m256i bb = _mm256_add_epi32(
+            _mm256_srli_epi32(nb, 3),
+            _mm256_srli_epi32(_mm256_add_epi32(_mm256_and_si256(nb, seven), seven), 3));
+        const __m256i ba = _mm256_add_epi32(
+            _mm256_srli_epi32(na, 3),
+            _mm256_srli_epi32(_mm256_add_epi32(_mm256_and_si256(na, seven), seven), 3));
+        /* i + 1 to i + 8 exactly: i is below 2^24 */
+        const __m256 at = _mm256_add_ps(_mm256_set1_ps((float)i), first);
+        const __m256 pos = _mm256_add_ps(lo, _mm256_mul_ps(length, _mm256_div_ps(at, count)));
+        const __m256 inside = _mm256_and_ps(_mm256_cmp_ps(pos, lo, _CMP_GT_OQ),
+                                            _mm256_cmp_ps(pos, hi, _CMP_LT_OQ));
+        const __m256i ok = _mm256_and_si256(
+            _mm256_loadu_si256((const __m256i *)(const void *)(fits + i)),
+            _mm256_castps_si256(inside));
+        const __m256i empty =
+            _mm256_or_si256(_mm256_cmpeq_epi32(nb, zero), _mm256_cmpeq_epi32(na, zero));
+        const __m256d least = _mm256_set1_pd(best->cost);
+        float at_pos[8];
+        double cost[8];
+        int h, cheaper = 0;
+        for (h = 0; h < 2; ++h) { /* lanes 4h to 4h + 3, in double */
+            const __m256d p = _mm256_cvtps_pd(h ? _mm256_extractf128_ps(pos, 1)
+                                                : _mm256_castps256_ps128(pos));
+            /* each 32-bit mask widened to 64 bits by sign extension */
+            const __m256d e = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(
+                h ? _mm256_extracti128_si256(empty, 1) : _mm256_castsi256_si128(empty)));
+            const __m256d valid = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(
+                h ? _mm256_extracti128_si256(ok, 1) : _mm256_castsi256_si128(ok)));
+            const __m256d blocks_below = _mm256_cvtepi32_pd(
+                h ? _mm256_extracti128_si256(bb, 1) : _mm256_castsi256_si128(bb));
+            const __m256d blocks_above = _mm256_cvtepi32_pd(
+                h ? _mm256_extracti128_si256(ba, 1) : _mm256_castsi256_si128(ba));
+            const __m256d p_below = _mm256_mul_pd(
+                _mm256_add_pd(cap, _mm256_mul_pd(_mm256_sub_pd(p, lo_d), side)), inv_area);
+            const __m256d p_above = _mm256_mul_pd(
+                _mm256_add_pd(cap, _mm256_mul_pd(_mm256_sub_pd(hi_d, p), side)), inv_area);
+            const __m256d scale = _mm256_blendv_pd(isect, isect_empty, e);
+            const __m256d sah = _mm256_add_pd(
+                trav, _mm256_mul_pd(scale, _mm256_add_pd(_mm256_mul_pd(p_below, blocks_below),
+                                                         _mm256_mul_pd(p_above, blocks_above))));
+            const __m256d kept = _mm256_blendv_pd(inf, sah, valid);
+            cheaper |= _mm256_movemask_pd(_mm256_cmp_pd(kept, least, _CMP_LT_OQ));
+            _mm256_storeu_pd(cost + 4 * h, kept);
+        }
+        if (!cheaper) continue; /* the usual case: none beats the best so far */
+        _mm256_storeu_ps(at_pos, pos);
+        for (j = 0; j < 8; ++j) /* in order, the first of equal costs kept, as in the scalar loop */
+            if (cost[j] < best->cost)
+                best->axis = c->k, best->pos = at_pos[j], best->planar_below = 1,
+                best->cost = cost[j];
+    }
+}
+#endif
+
 /* The planes between bins of a node of n references, costed from the bins' counts. */
 static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uint32_t n,
                              const float lo[3], const float hi[3], double inv_area,
@@ -2432,6 +2611,12 @@ static void kdrt__bins_plane(const kdrt__builder *b, const kdrt__bins *bins, uin
         kdrt__axis_cost cost;
         if (bins->scale[k] == 0.0f) continue;
         cost = kdrt__axis_setup(b, k, lo, hi, inv_area, budget);
+#if defined(KDRT__AVX2)
+        if (bins->avx2) {
+            kdrt__bins_costs_avx2(&cost, bins, n, best);
+            continue;
+        }
+#endif
 #if KDRT__SSE2
         if (bins->sse) {
             kdrt__bins_costs_sse2(&cost, bins, n, best);
@@ -3186,6 +3371,7 @@ static void kdrt__builder_init(kdrt__builder *b, const kdrt_build_options *opt,
     b->max_depth = opt->max_depth ? opt->max_depth : kdrt__default_depth(m->triangles);
     if (b->max_depth > KDRT_MAX_DEPTH) b->max_depth = KDRT_MAX_DEPTH;
     b->sse = !(opt->flags & KDRT_BUILD_SCALAR_KERNEL);
+    b->avx2 = b->sse && kdrt__cpu_has_avx2();
     switch (opt->quality) {
     case KDRT_BUILD_QUALITY_FAST:
         b->exact_max = 0, b->bins = KDRT__FAST_BINS, b->exact_fallback = 0, b->clip = 0;
@@ -3843,17 +4029,8 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
 
 /* ==== the SIMD kernels: which one this build compiles, and what they share ==== */
 
-/* One at most, by the target: the AVX2 kernel (and the AVX-512 one) on x86-64 with GCC, Clang,
-   clang-cl or MSVC (not ARM64EC, which emulates x64 code), the 4-wide kernel on aarch64 and on
-   WebAssembly with SIMD128; none under KDRT_NO_SIMD (KERNELS, PLATFORMS). */
-#if !defined(KDRT_NO_SIMD) &&                                                                      \
-    ((defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))) ||                        \
-     (defined(_MSC_VER) && defined(_M_X64) && !defined(_M_ARM64EC)))
-#define KDRT__AVX2 1
-#elif !defined(KDRT_NO_SIMD) && (defined(__GNUC__) || defined(__clang__)) &&                       \
-    (defined(__aarch64__) || defined(__wasm_simd128__))
-#define KDRT__X4 1
-#endif
+/* Which SIMD kernel this build compiles, the AVX2 target attribute and the CPU check are
+   defined with SSE2, above the builder, which uses them too. */
 
 #if defined(KDRT__AVX2) || defined(KDRT__X4)
 #if defined(_MSC_VER)
@@ -3909,73 +4086,6 @@ static int kdrt__accept_lanes(kdrt_hit *best, const kdrt__block *block, unsigned
    and an add, so each operation rounds as the scalar kernel's does and the answers are the same
    bit for bit. */
 #if defined(KDRT__AVX2)
-#include <immintrin.h>
-#if defined(_MSC_VER) && !defined(__clang__)
-/* cl.exe names each function with AVX code compiled without /arch:AVX (C4752): kdrt's run
-   only where the CPU check found AVX2. Popped at the end of the implementation. */
-#pragma warning(push)
-#pragma warning(disable : 4752)
-#endif
-#if defined(__GNUC__) || defined(__clang__)
-#define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
-/* The AVX-512 kernel: the AVX2 kernel, and a batch's packets 16 rays wide (BATCHES). */
-#define KDRT__TARGET_AVX512 __attribute__((target("avx2,avx512f")))
-#else
-#define KDRT__TARGET_AVX2
-#define KDRT__TARGET_AVX512
-#endif
-#if defined(_MSC_VER) && defined(__clang__)
-/* clang-cl's immintrin.h, unlike MSVC's, declares only the intrinsics the command line enables
-   (/arch): those of the target attributes are named here (SSE4.1's for _MM_FROUND_*). */
-#include <smmintrin.h>
-#include <avxintrin.h>
-#include <avx2intrin.h>
-#include <avx512fintrin.h>
-#endif
-
-#if defined(_MSC_VER)
-#include <intrin.h> /* __cpuid, __cpuidex, _BitScanForward */
-/* What __builtin_cpu_supports asks, from cpuid and xgetbv, with nothing beyond the CRT (clang-cl's
-   __builtin_cpu_supports needs compiler-rt, which MSVC links lack): 2 where the CPU has AVX2 and
-   AVX512F and the OS saves the ZMM registers, 1 where it has AVX2 and the OS saves the YMM ones,
-   else 0. */
-#if defined(__clang__)
-__attribute__((target("xsave")))
-#endif
-static int kdrt__cpu_vector_level(void)
-{
-    const unsigned osxsave_and_avx = 1u << 27 | 1u << 28; /* cpuid 1, ecx */
-    const unsigned avx2 = 1u << 5, avx512f = 1u << 16;    /* cpuid 7, ebx */
-    int info[4];
-    unsigned long long xcr0;
-    __cpuid(info, 0);
-    if (info[0] < 7) return 0;
-    __cpuid(info, 1);
-    if (((unsigned)info[2] & osxsave_and_avx) != osxsave_and_avx) return 0;
-    xcr0 = _xgetbv(0);
-    if ((xcr0 & 0x6u) != 0x6u) return 0; /* XCR0 bits 1, 2: the XMM and YMM registers */
-    __cpuidex(info, 7, 0);
-    if (!((unsigned)info[1] & avx2)) return 0;
-    /* bits 5, 6, 7: the mask registers, the ZMM registers' upper halves, ZMM16 to ZMM31 */
-    return ((unsigned)info[1] & avx512f) && (xcr0 & 0xE0u) == 0xE0u ? 2 : 1;
-}
-
-static int kdrt__cpu_has_avx2(void) { return kdrt__cpu_vector_level() >= 1; }
-static int kdrt__cpu_has_avx512(void) { return kdrt__cpu_vector_level() >= 2; }
-#else
-static int kdrt__cpu_has_avx2(void)
-{
-    __builtin_cpu_init(); /* idempotent; needed when called before constructors have run */
-    return __builtin_cpu_supports("avx2") != 0;
-}
-
-static int kdrt__cpu_has_avx512(void)
-{
-    __builtin_cpu_init(); /* also checks that the OS saves the AVX-512 registers */
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f");
-}
-#endif
-
 /* kdrt__surely_missed_avx2 and kdrt__watertight_lanes_avx2: the exact test on 8 lanes, written
    once for 8 and 16 (PACKETS, at the end of this file). */
 #define KDRT__PACKET_WIDTH 8
@@ -4049,9 +4159,6 @@ KDRT__TARGET_AVX2 static unsigned kdrt__block_fast_avx2(const kdrt__block *block
     c->front = (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(det, zero, _CMP_GT_OQ));
     return mask;
 }
-#else
-static int kdrt__cpu_has_avx2(void) { return 0; }
-static int kdrt__cpu_has_avx512(void) { return 0; }
 #endif
 
 /* ==== the 4-wide kernel: NEON and WebAssembly SIMD128, a block as two halves of 4 ==== */
@@ -6547,7 +6654,7 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 }
 
 #if defined(KDRT__AVX2) && defined(_MSC_VER) && !defined(__clang__)
-#pragma warning(pop) /* C4752, from the AVX2 kernel on */
+#pragma warning(pop) /* C4752, pushed where the AVX2 target attribute is defined */
 #endif
 
 #ifdef __cplusplus
