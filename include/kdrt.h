@@ -2455,6 +2455,17 @@ static void kdrt__bins_counts(const kdrt__axis_cost *c, const kdrt__bins *bins, 
     for (; i % 8u; ++i) below[i] = above[i] = fits[i] = 0;
 }
 
+/* Planes pos[0..lanes) of axis k, costing cost[]: the cheapest kept where it beats best, in
+   order, the first of equal costs kept, as in the scalar loop. */
+static void kdrt__keep_cheapest(int k, const float *pos, const double *cost, uint32_t lanes,
+                                kdrt__plane *best)
+{
+    uint32_t j;
+    for (j = 0; j < lanes; ++j)
+        if (cost[j] < best->cost)
+            best->axis = k, best->pos = pos[j], best->planar_below = 1, best->cost = cost[j];
+}
+
 /* Costs the planes between the bins on one axis of a node of n references 4 at a time, by the
    operations of kdrt__consider (no planars) in the same order, each rounding as there
    (contraction is off): the costs, and so the plane kept, are the scalar loop's bit for bit. */
@@ -2462,7 +2473,7 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
                                   kdrt__plane *best)
 {
     uint32_t below[KDRT_SAH_BINS + 7], above[KDRT_SAH_BINS + 7], fits[KDRT_SAH_BINS + 7];
-    uint32_t i, j;
+    uint32_t i;
     const uint32_t planes = bins->count - 1u;
     const __m128 lo = _mm_set1_ps(c->lo), hi = _mm_set1_ps(c->hi);
     const __m128 length = _mm_set1_ps(c->hi - c->lo), count = _mm_set1_ps((float)bins->count);
@@ -2512,10 +2523,7 @@ static void kdrt__bins_costs_sse2(const kdrt__axis_cost *c, const kdrt__bins *bi
         }
         if (!cheaper) continue; /* the usual case: none beats the best so far */
         _mm_storeu_ps(at_pos, pos);
-        for (j = 0; j < 4; ++j) /* in order, the first of equal costs kept, as in the scalar loop */
-            if (cost[j] < best->cost)
-                best->axis = c->k, best->pos = at_pos[j], best->planar_below = 1,
-                best->cost = cost[j];
+        kdrt__keep_cheapest(c->k, at_pos, cost, 4, best);
     }
 }
 #endif
@@ -2528,7 +2536,7 @@ KDRT__TARGET_AVX2 static void kdrt__bins_costs_avx2(const kdrt__axis_cost *c,
                                                     kdrt__plane *best)
 {
     uint32_t below[KDRT_SAH_BINS + 7], above[KDRT_SAH_BINS + 7], fits[KDRT_SAH_BINS + 7];
-    uint32_t i, j;
+    uint32_t i;
     const uint32_t planes = bins->count - 1u;
     const __m256 lo = _mm256_set1_ps(c->lo), hi = _mm256_set1_ps(c->hi);
     const __m256 length = _mm256_set1_ps(c->hi - c->lo);
@@ -2591,10 +2599,7 @@ KDRT__TARGET_AVX2 static void kdrt__bins_costs_avx2(const kdrt__axis_cost *c,
         }
         if (!cheaper) continue; /* the usual case: none beats the best so far */
         _mm256_storeu_ps(at_pos, pos);
-        for (j = 0; j < 8; ++j) /* in order, the first of equal costs kept, as in the scalar loop */
-            if (cost[j] < best->cost)
-                best->axis = c->k, best->pos = at_pos[j], best->planar_below = 1,
-                best->cost = cost[j];
+        kdrt__keep_cheapest(c->k, at_pos, cost, 8, best);
     }
 }
 #endif
