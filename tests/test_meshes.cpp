@@ -14,7 +14,7 @@ TEST_CASE("shared meshes agree with the reference", "[meshes]") {
                       "the default is ../shared/meshes next to the repository)");
         return;
     }
-    size_t rays = kt::reference_ray_count();
+    size_t rays = kt::shared_mesh_ray_count();
     for (size_t i = 0; i < files.size(); ++i) {
         const std::string name = std::filesystem::path(files[i]).filename().string();
         DYNAMIC_SECTION(name) {
