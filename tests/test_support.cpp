@@ -212,6 +212,8 @@ size_t reference_ray_count() { return count_from_environment("KDRT_TEST_RAYS", 1
 
 size_t shared_mesh_ray_count() { return count_from_environment("KDRT_TEST_MESH_RAYS", reference_ray_count()); }
 
+size_t shared_mesh_max_triangles() { return count_from_environment("KDRT_TEST_MESH_TRIANGLES", 0); }
+
 namespace {
 
 std::string hex_ray(const kdrt_ray &r) {
