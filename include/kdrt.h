@@ -446,6 +446,8 @@
 #ifndef KDRT_H
 #define KDRT_H
 
+/* The version of this header; kdrt_version() returns the one of the implementation the program
+   was linked with (the file with KDRT_IMPLEMENTATION), KDRT_VERSION_STRING when they agree. */
 #define KDRT_VERSION_MAJOR 0
 #define KDRT_VERSION_MINOR 1
 #define KDRT_VERSION_PATCH 0
@@ -660,6 +662,8 @@ typedef struct kdrt_tree_stats {
 
 typedef struct kdrt_tree kdrt_tree;
 
+/* "MAJOR.MINOR.PATCH": the KDRT_VERSION_STRING the implementation was compiled with. */
+KDRT_API const char *kdrt_version(void);
 KDRT_API const char *kdrt_result_string(kdrt_result result);
 /* A kernel's short name: "scalar", "avx2", "avx512", "neon", "simd128" (kdrt-bench's --kernel
    names); "unknown" for another value. */
@@ -1499,7 +1503,12 @@ static int kdrt__zero_area(float p[3][3])
     return n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0;
 }
 
-/* ==== results and boxes ==== */
+/* ==== version, results and boxes ==== */
+
+KDRT_API const char *kdrt_version(void)
+{
+    return KDRT_VERSION_STRING;
+}
 
 KDRT_API const char *kdrt_result_string(kdrt_result result)
 {

@@ -1,5 +1,5 @@
 /* The header with its implementation as strict C99 (-std=c99 -Wall -Wextra -pedantic -Werror):
-   a tiny tree, one hit, one miss, a query with culling and a filter, the k nearest hits, walking the tree, kdrt_result_string and kdrt_kernel_string, one refraction and the medium stack. */
+   a tiny tree, one hit, one miss, a query with culling and a filter, the k nearest hits, walking the tree, kdrt_result_string and kdrt_kernel_string, kdrt_version against the version macros, one refraction and the medium stack. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
 
@@ -45,6 +45,7 @@ int main(void)
     kdrt_node_info node;
     uint32_t triangle = 0, i, k;
     uint64_t refs = 0;
+    char version[64];
 
     mesh.positions = vertices;
     mesh.vertex_count = 4;
@@ -129,6 +130,9 @@ int main(void)
               strcmp(kdrt_kernel_string(KDRT_KERNEL_NEON), "neon") == 0 &&
               strcmp(kdrt_kernel_string((kdrt_kernel)99), "unknown") == 0,
           "kdrt_kernel_string");
+    snprintf(version, sizeof version, "%d.%d.%d", KDRT_VERSION_MAJOR, KDRT_VERSION_MINOR, KDRT_VERSION_PATCH);
+    check(strcmp(version, KDRT_VERSION_STRING) == 0, "KDRT_VERSION_STRING is MAJOR.MINOR.PATCH");
+    check(strcmp(kdrt_version(), KDRT_VERSION_STRING) == 0, "kdrt_version() is KDRT_VERSION_STRING");
     check(kdrt_tree_build(NULL, &options, &tree, NULL) == KDRT_ERROR_NULL_ARGUMENT && tree == NULL,
           "NULL mesh is KDRT_ERROR_NULL_ARGUMENT");
 

@@ -224,10 +224,12 @@ TEST_CASE("cells: every rope names a node covering its face, and boundary faces 
                 const kt::TreePtr tree = kt::build(mesh, leaf, builder);
                 check_ropes(tree.get());
             }
+    const size_t max_triangles = kt::shared_mesh_max_triangles();  // KDRT_TEST_MESH_TRIANGLES
     for (const std::string &path : kt::shared_mesh_files()) {
         Mesh mesh;
         std::string error;
         if (!common::load_mesh(path, mesh, error)) continue;
+        if (max_triangles != 0 && mesh.triangle_count() > max_triangles) continue;
         for (const kt::Builder &builder : kt::kBuilders) {
             INFO(path << ", " << builder.name);
             check_ropes(kt::build(mesh, 4, builder).get());

@@ -1,7 +1,6 @@
 // kdrt-render's YAML scene files: good files give exactly the model they describe; every kind of
 // mistake gives one line naming the file and the line, and leaves the caller's Scene as it was.
-#define CATCH_CONFIG_MAIN
-#include <catch2/catch.hpp>
+#include <catch2/catch.hpp>  // main() is kdrt_catch_main's (tests/CMakeLists.txt)
 
 #include "scene_file.hpp"
 #include "temp_dir.hpp"

@@ -194,14 +194,25 @@ TreePtr build(const Mesh &mesh, uint32_t max_leaf_size, kdrt_builder builder) {
     return build(mesh, max_leaf_size, Builder{builder, KDRT_BUILD_QUALITY_DEFAULT, builder == KDRT_BUILDER_MEDIAN ? "median" : "sah"});
 }
 
-size_t reference_ray_count() {
-    const char *env = std::getenv("KDRT_TEST_RAYS");
+namespace {
+
+// The positive whole number the environment variable `name` holds, else `otherwise`.
+size_t count_from_environment(const char *name, size_t otherwise) {
+    const char *env = std::getenv(name);
     if (env && *env) {
         long v = std::strtol(env, nullptr, 10);
         if (v > 0) return size_t(v);
     }
-    return 100000;
+    return otherwise;
 }
+
+}  // namespace
+
+size_t reference_ray_count() { return count_from_environment("KDRT_TEST_RAYS", 100000); }
+
+size_t shared_mesh_ray_count() { return count_from_environment("KDRT_TEST_MESH_RAYS", reference_ray_count()); }
+
+size_t shared_mesh_max_triangles() { return count_from_environment("KDRT_TEST_MESH_TRIANGLES", 0); }
 
 namespace {
 

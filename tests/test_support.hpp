@@ -95,6 +95,13 @@ void skip_test(const std::string &why);
 
 // How many rays the reference suites trace: 100,000, or what KDRT_TEST_RAYS says.
 size_t reference_ray_count();
+// How many the shared meshes' reference suite traces a mesh: what KDRT_TEST_MESH_RAYS says, else
+// reference_ray_count(). CI's sanitizer build gives it fewer than the others, in the same ctest run.
+size_t shared_mesh_ray_count();
+// The most triangles a shared mesh may have for that suite, and the ropes' check of every shared
+// mesh (test_cells.cpp), to build it: what KDRT_TEST_MESH_TRIANGLES says, else no limit (0).
+// The scalar copy of that suite and CI's sanitizer build check the smaller meshes only.
+size_t shared_mesh_max_triangles();
 
 // The leaf sizes the reference suites build; 0 (no tree: every triangle tested) comes first.
 constexpr uint32_t kLeafSizes[] = {0, 1, 2, 4, 8, 16, 64};
