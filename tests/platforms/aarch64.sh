@@ -82,9 +82,10 @@ KDRT_TEST_RAYS=4000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests
 KDRT_TEST_RAYS=2000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$scalar_tests"
 
 if [[ -f tests/platforms/answers.c ]]; then
-  step "the stored answers (tests/platforms/answers.txt), NEON and scalar kernels"
+  step "the stored answers (tests/platforms/answers.txt) and saved trees (answers.kdrt), NEON and scalar"
   # answers.c checks the file with every kernel the build has: here the default (NEON) and
-  # KDRT_BUILD_SCALAR_KERNEL; the KDRT_NO_SIMD build has the scalar kernel alone.
+  # KDRT_BUILD_SCALAR_KERNEL; the KDRT_NO_SIMD build has the scalar kernel alone. Then it loads
+  # the trees saved on x86-64 beside it and checks them the same way.
   "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" tests/platforms/answers.c -o "$objects/answers" -lm
   "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" -DKDRT_NO_SIMD tests/platforms/answers.c -o "$objects/answers-no-simd" -lm
   "${qemu[@]}" "$objects/answers" tests/platforms/answers.txt
