@@ -466,6 +466,11 @@
      lie (their blocks, nodes and cells), which must stay alive and unchanged until
      kdrt_tree_free(). tests/test_save.cpp refuses every truncation, extra byte, changed byte and
      forged field of a saved tree; tests/fuzz/fuzz_load.cpp fuzzes loads under ASan and UBSan.
+     Across platforms: tests/platforms/answers.c loads four trees saved on x86-64 (a scene's mesh
+     tree among them; tests/platforms/answers.kdrt) on each target tests/platforms/run.sh runs it
+     on (x86-64 and i386, aarch64 under qemu, wasm under node, mingw-w64 under wine), copied and
+     in place with each kernel there, and checks that they give its stored answers bit for bit
+     and save again to the same bytes.
      Cost, one thread, on an AMD EPYC 2-core VM with AVX2 (GCC 12 -O2; bench/save_load.cpp, the
      fastest of 7 runs of each, its command at its top), against a FAST build of the same mesh:
          mesh (triangles)          FAST build   load (x faster)  in place (x)   hash   save  file
