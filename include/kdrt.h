@@ -85,7 +85,10 @@
      kdrt_spawn_ray() read the caller's buffers. Moving or editing the vertices requires a new
      build. The kdrt_triangles struct itself may be discarded after the build. Everything the
      tree owns comes from options.allocator (or KDRT_MALLOC) and goes back to it in
-     kdrt_tree_free(); a kdrt_media_stack is plain data the caller owns.
+     kdrt_tree_free(); a kdrt_media_stack is plain data the caller owns. A loaded tree
+     (kdrt_tree_load(), SAVED TREES) borrows the mesh buffers as a built one does and owns copies
+     of the file's sections; the bytes may be freed once the load returns, unless it was loaded
+     with KDRT_LOAD_IN_PLACE, whose tree uses them until kdrt_tree_free().
 
    THREAD SAFETY
      No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
@@ -93,7 +96,9 @@
      kdrt_intersect_k(), the _query variants, the inspection functions, kdrt_hit_surface(),
      kdrt_spawn_ray()); kdrt_tree_free() must wait until none is running. Builds of different
      trees may run at once, and one SAH build may run its tasks on many threads through
-     options.scheduler, which then calls options.allocator from those threads.
+     options.scheduler, which then calls options.allocator from those threads. kdrt_tree_save()
+     reads a const tree (and its mesh buffers) and may run beside queries and other saves; loads
+     are as builds: any number at once, of different trees, from the same bytes too.
 
    ERRORS
      Functions that can fail return kdrt_result; kdrt_result_string() names each code. A failed
@@ -101,7 +106,8 @@
      never aborts on bad input and never calls exit(). Checked: NULL pointers, a stride under 12
      bytes, indices out of range, NaN or infinite coordinates (error, or skipped with
      KDRT_BUILD_SKIP_INVALID_TRIANGLES), counts beyond what the tree can address, and allocation
-     failure. Zero triangles is valid: the tree is empty and every ray misses.
+     failure. Zero triangles is valid: the tree is empty and every ray misses. A load checks every
+     field of the file before it uses it (SAVED TREES), with result codes of its own.
 
    QUERIES AND GUARANTEES
      A ray is org + t * dir for t in [max(tmin, 0), tmax]; dir need not be normalised. A ray with a
@@ -392,6 +398,145 @@
      of a freed tree is the caller's error, which kdrt cannot detect. Threads:
      queries as on trees (const scene, nothing allocated, any number at once); the changes and
      kdrt_scene_commit() change the scene and must not overlap a query on it, nor each other.
+     Baked scenes: a level's static meshes are the scene's mesh tree, and building it is most of
+     a scene build. kdrt_scene_save_meshes() saves that tree as kdrt_tree_save() saves one (SAVED
+     TREES; a scene without meshes saves a file of none), and kdrt_scene_load() is
+     kdrt_scene_build() with the tree loaded from those bytes instead of built, as a tinybvh or
+     Embree user bakes and loads an acceleration structure:
+
+         kdrt_scene_build(entries, count, &options, &scene, NULL);       // offline, once
+         kdrt_scene_save_meshes(scene, write_to_file, file);
+         ...
+         r = kdrt_scene_load(entries, count, bytes, size, NULL, &scene, &report); // at run time
+         if (r == KDRT_ERROR_MESH_MISMATCH) ... // report.invalid_geometry: the mesh that changed
+
+     The entries must hold the same meshes under the same IDs (their buffers the same floats and
+     indices, checked by the file's fingerprint of each); their order, masks, flags and user
+     pointers, and the instances, are free to differ, since the file holds none of them: the
+     instances are placed and the top level built as kdrt_scene_build() does, which costs little
+     beside the mesh tree. The scene takes the file's build options for the mesh trees later
+     commits rebuild (attaching or detaching a mesh), with the allocator, scheduler and kernel
+     flags of the options given (NULL: defaults); KDRT_LOAD_IN_PLACE borrows the bytes until
+     kdrt_scene_free() or the commit that rebuilds the mesh tree. A loaded scene answers every
+     query bit for bit as the scene that was saved. kdrt_tree_save()'s file of a tree is a scene's
+     file of one mesh with ID 0, and loads as such.
+
+   SAVED TREES
+     A built tree saved once loads in a fraction of its build's time: a game bakes its static
+     geometry offline and loads it at start, as tinybvh's and nanort's users do.
+
+         static int to_file(void *file, const void *bytes, size_t size)
+         {
+             return fwrite(bytes, 1, size, (FILE *)file) == size;
+         }
+         kdrt_tree_save(tree, to_file, file);          // offline: kdrt_tree_saved_size() bytes
+         ...
+         r = kdrt_tree_load(bytes, size, &mesh, NULL, &tree, NULL);   // the same mesh buffers
+         if (r == KDRT_ERROR_MESH_MISMATCH) ... // the mesh changed since: build (and save) again
+
+     A loaded tree answers every query bit for bit as the saved tree, on every kernel and
+     platform (the file is little-endian everywhere, its floats the tree's own bits), and saves
+     again to the same bytes. The bytes do not depend on the run, the kernel, the scheduler or
+     the thread count, since builds do not (THE TREE, KERNELS). The load's options give the
+     allocator and the kernel flags, the kernel chosen as a build chooses it; the file gives the
+     rest: the tree, its intersector and the build options it records, which
+     kdrt_saved_tree_read_info() reads for tools without loading. A file is the tree's memory as
+     it lies, its size within 0.1% of kdrt_tree_stats.bytes (the cells included).
+     Checked before use, in one pass over the nodes and one over the blocks, with a result code for
+     each kind of failure, *out_tree NULL and nothing left allocated:
+       KDRT_ERROR_NOT_A_SAVED_TREE  no magic; KDRT_ERROR_FILE_BYTE_ORDER a big-endian byte order
+       mark; KDRT_ERROR_FILE_VERSION another format version; KDRT_ERROR_FILE_SIZE fewer or more
+       bytes than the header records (every truncation); KDRT_ERROR_MESH_MISMATCH meshes other
+       than those saved (their number, IDs, counts, soup or indexed, or the XXH64 fingerprint of
+       their positions and indices, read through any stride: a strided copy of the same floats
+       is the same mesh); KDRT_ERROR_OUT_OF_MEMORY; KDRT_ERROR_FILE_CORRUPT anything else: the
+       header's checksum, every header field in range and consistent (sizes against counts and
+       the file's size, options valid, depths within the limit the options resolve to, bounds
+       finite or the empty box), the nodes in the depth-first layout a build makes (children in
+       range, each below child next and each above child reached exactly where its sibling's
+       subtree ends: no cycle, no node twice, depth at most the limit and KDRT_MAX_DEPTH), splits
+       finite and within their node's box, each leaf's blocks and references where the counts
+       before it put them, every lane's triangle below the meshes' count, each leaf's last block
+       padded with copies of its last triangle as the build pads it, every cell's box the walk's
+       bit for bit, its ropes nodes of the tree or none, the cell map, and last the checksums of
+       the mesh records and of the sections.
+     The checksums find damage: any changed word. A forged file (its checksums made again)
+     passes only if it is a well-formed tree: its queries then cannot crash, hang, read out of
+     bounds or allocate, but they answer as its bytes say, since the triangles' corners and the
+     ropes are not compared with the mesh's (that would cost the gather through the index buffer
+     that a build's packing costs). A load allocates at most the file's size and 63 bytes beside
+     the tree's struct (320 bytes on x86-64); with KDRT_LOAD_IN_PLACE, where the bytes are 64-byte
+     aligned and the host little-endian, only the struct: the tree then uses the bytes where they
+     lie (their blocks, nodes and cells), which must stay alive and unchanged until
+     kdrt_tree_free(). tests/test_save.cpp refuses every truncation, extra byte, changed byte and
+     forged field of a saved tree; tests/fuzz/fuzz_load.cpp fuzzes loads under ASan and UBSan.
+     Across platforms: tests/platforms/answers.c loads four trees saved on x86-64 (a scene's mesh
+     tree among them; tests/platforms/answers.kdrt) on each target tests/platforms/run.sh runs it
+     on (x86-64 and i386, aarch64 under qemu, wasm under node, mingw-w64 under wine), copied and
+     in place with each kernel there, and checks that they give its stored answers bit for bit
+     and save again to the same bytes.
+     Cost, one thread, on an AMD EPYC 2-core VM with AVX2 (GCC 12 -O2; bench/save_load.cpp, the
+     fastest of 7 runs of each, its command at its top), against a FAST build of the same mesh:
+         mesh (triangles)          FAST build   load (x faster)  in place (x)   hash   save  file
+         stanford-bunny (69,451)     36.6 ms    0.85 ms (43)     0.70 ms (52)   0.15   0.54  5.8 MB
+         ogre (124,008)              61.9 ms    2.46 ms (25)     1.45 ms (43)   0.18   1.63  11.6 MB
+         bunny subdivided twice     786 ms     114 ms   (6.9)   29.2 ms  (27)   2.65   31.0  93.4 MB
+           (1,111,216)
+     "hash" is the mesh fingerprint, XXH64 over the positions and indices (1.2 MB for the bunny,
+     20 MB for the subdivided one: 7 to 8 GB/s), which every load computes: a fifth of the small
+     loads, 2% of the large one. A copying load of a large tree is bound by the fresh memory it
+     writes, which this VM gives at about 1.3 ms a megabyte (a page fault every 4 KB): 93 MB of
+     blocks cost it most of its 114 ms, which a load in place does not spend.
+     The format, version 1 (KDRT_SAVED_TREE_VERSION): little-endian, uint32 and float (IEEE
+     binary32 bits) words, uint64 as two words, low first. A 256-byte header, then the sections
+     in this order, each its records back to back with nothing between:
+       offset  header field
+         0     magic "KDRTTREE" (8 bytes)
+         8     byte order mark 0x01020304 (bytes 04 03 02 01)
+        12     format version: 1
+        16     header size in bytes: 256
+        20     mesh records (1 for a tree; a scene's meshes, 0 or more)
+        24     file size in bytes (uint64)
+        32     section sizes in bytes (uint64 each): mesh records, nodes, blocks, block
+               references, cells, cell map (at 32, 40, 48, 56, 64, 72)
+        80     nodes, leaves, blocks, triangles in the tree (kdrt_tree_stats)
+        96     triangle references (uint64)
+       104     depth of the deepest leaf; 108 the meshes' triangles, all of them
+       112     build options as given: builder, quality, intersector, max_leaf_size, max_depth
+               (112 to 128); 132 the depth limit the build resolved; 136 flags (only
+               KDRT_BUILD_SKIP_INVALID_TRIANGLES); 140, 144, 148 sah_traversal_cost,
+               sah_intersection_cost, sah_empty_bonus (floats, 0 for the default)
+       152     the build's KDRT_SAH_BINS, KDRT_SAH_EXACT_MAX, KDRT_SAH_REFERENCE_BUDGET
+       164     the tree's bounds: min x, y, z, max x, y, z (floats); kdrt_aabb_empty() when empty
+       188     0
+       192     XXH64 of the mesh records (uint64)
+       200     checksum of the sections from blocks to cell map (uint64, below)
+       208     0 up to 248
+       248     XXH64 of bytes 0 to 247 (uint64)
+       blocks         320 bytes each, 64-byte aligned in the file: 9 x 8 floats, [3 * corner +
+                      axis][lane], the corners of 8 triangles, then their 8 triangle numbers
+                      (across the meshes: mesh k's triangle i is the sum of the earlier meshes'
+                      counts plus i); each leaf's triangles in ceil(count / 8) blocks, leaf by
+                      leaf in node order, the last block's spare lanes copies of its last lane
+       nodes          8 bytes each, depth first, the below child after its parent: word 0 the
+                      split (float) of an inner node or a leaf's first block; word 1 the axis
+                      (bits 0-1: 0, 1, 2, or 3 for a leaf) and above it (bits 2-31) an inner
+                      node's above child or a leaf's triangle count
+       cells          48 bytes a leaf, in node order: its box (min x, y, z, max x, y, z floats)
+                      and six ropes, [2 * axis + side], a node or 0xFFFFFFFF (START CELLS)
+       block refs     4 bytes a block: the number of its lane 0's reference, leaf by leaf
+       cell map       4 bytes a node: a leaf's number among the leaves, 0xFFFFFFFF for an
+                      inner node
+       mesh records   32 bytes a mesh, in the tree's order (a scene's: by ID): its ID, triangle
+                      count, vertex count, 1 if indexed else 0, XXH64 of its vertex_count * 3
+                      position floats (as little-endian bytes, vertex by vertex whatever the
+                      stride), XXH64 of its 3 * triangle_count indices (of no bytes for a soup);
+                      a mesh of no triangles hashes no bytes at all
+     XXH64 is xxHash's 64-bit hash with seed 0, which every xxHash library computes. The sections'
+     checksum is a Fletcher sum over their words in file order, in 8 lanes: word i adds to a[i mod
+     8], then a[i mod 8] adds to b[i mod 8], 32-bit and wrapping; it ends as XXH64 of a[0..7] and
+     b[0..7] (32-bit words) and the number of words (uint64), 72 bytes. A reader of another
+     version or byte order stops at its field; a newer version would change the number at 12.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -493,8 +638,19 @@ typedef enum kdrt_result {
     KDRT_ERROR_NOT_IN_MEDIUM,      /* kdrt_media_leave() of an object the stack does not hold */
     KDRT_ERROR_INVALID_IOR,        /* an index of refraction that is NaN, infinite, 0 or negative */
     KDRT_ERROR_INVALID_GEOMETRY_ID, /* a scene's geometry ID used twice, or KDRT_INVALID_ID */
-    KDRT_ERROR_INVALID_TRANSFORM   /* an instance transform that is singular, NaN or infinite,
+    KDRT_ERROR_INVALID_TRANSFORM,  /* an instance transform that is singular, NaN or infinite,
                                       or that carries its tree's box beyond float's range */
+    /* Saved trees (SAVED TREES): */
+    KDRT_ERROR_WRITE_FAILED,       /* kdrt_tree_save()'s write callback returned 0 */
+    KDRT_ERROR_NOT_A_SAVED_TREE,   /* the bytes do not start with a saved tree's magic */
+    KDRT_ERROR_FILE_VERSION,       /* a saved tree of a format version this kdrt does not read */
+    KDRT_ERROR_FILE_BYTE_ORDER,    /* a saved tree whose byte order mark is not little-endian */
+    KDRT_ERROR_FILE_SIZE,          /* fewer or more bytes than the saved tree's header records
+                                      (a truncated file, or bytes after its end) */
+    KDRT_ERROR_FILE_CORRUPT,       /* a header or section field that no save writes: a damaged
+                                      or forged file */
+    KDRT_ERROR_MESH_MISMATCH       /* the meshes given are not those the tree was saved over
+                                      (counts, or the hash of positions and indices) */
 } kdrt_result;
 
 typedef struct kdrt_aabb {
@@ -585,7 +741,13 @@ typedef enum kdrt_build_flags {
     KDRT_BUILD_SCALAR_KERNEL = 1u << 1,
     /* Trace this tree with the AVX2 kernel even where the CPU has AVX-512 (a batch's packets
        then hold 8 rays, not 16): the answers are the same bit for bit; for comparing the two. */
-    KDRT_BUILD_AVX2_KERNEL = 1u << 2
+    KDRT_BUILD_AVX2_KERNEL = 1u << 2,
+    /* kdrt_tree_load() and kdrt_scene_load() (SAVED TREES): where the bytes are 64-byte aligned
+       and the host little-endian (x86-64, aarch64, wasm), the tree uses them where they lie
+       instead of copying them: the bytes must then stay alive and unchanged until the tree (or
+       scene) is freed. Elsewhere the load copies, as without the flag. Builds refuse it
+       (KDRT_ERROR_INVALID_OPTION). */
+    KDRT_LOAD_IN_PLACE = 1u << 3
 } kdrt_build_flags;
 
 /* The code that runs a tree's queries, chosen when it is built (KERNELS). */
@@ -847,6 +1009,53 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
    infinite, or a NULL argument. */
 KDRT_API uint32_t kdrt_locate(const kdrt_tree *tree, const float point[3]);
 
+/* ==== saved trees (see SAVED TREES): a tree baked once, loaded without a build ==== */
+
+/* Receives a saved tree's bytes, in order, a piece at a time (size > 0): a file, a buffer, an
+   engine's archive. Returns nonzero when it took the whole piece, 0 to stop the save. */
+typedef int (*kdrt_write_fn)(void *user, const void *bytes, size_t size);
+
+/* The exact number of bytes kdrt_tree_save() writes for tree (0 for NULL). */
+KDRT_API size_t kdrt_tree_saved_size(const kdrt_tree *tree);
+/* Writes tree through write (SAVED TREES): the same bytes on every run, kernel and platform for
+   the same tree. Reads the tree's mesh buffers (their hash goes into the file). Errors:
+   KDRT_ERROR_NULL_ARGUMENT, KDRT_ERROR_WRITE_FAILED (write returned 0; what it took so far is
+   not a saved tree). */
+KDRT_API kdrt_result kdrt_tree_save(const kdrt_tree *tree, kdrt_write_fn write, void *user);
+/* A tree from the size bytes kdrt_tree_save() wrote, over mesh: the same mesh buffers, borrowed
+   as kdrt_tree_build() borrows them. options (NULL: defaults) gives the allocator and the kernel
+   flags (KDRT_BUILD_SCALAR_KERNEL, KDRT_BUILD_AVX2_KERNEL; the kernel is chosen as a build
+   chooses it), and KDRT_LOAD_IN_PLACE; the tree's shape and intersector are the file's, the other
+   fields are ignored. bytes is only read, and may be freed once the call returns (with
+   KDRT_LOAD_IN_PLACE: once the tree is freed). Every field is checked before it
+   is used; on failure *out_tree is NULL, nothing stays allocated, and the result says why:
+   KDRT_ERROR_NOT_A_SAVED_TREE, KDRT_ERROR_FILE_VERSION, KDRT_ERROR_FILE_BYTE_ORDER,
+   KDRT_ERROR_FILE_SIZE, KDRT_ERROR_FILE_CORRUPT, KDRT_ERROR_MESH_MISMATCH (also for a scene's
+   file), KDRT_ERROR_OUT_OF_MEMORY, or the mesh view's own errors (KDRT_ERROR_INVALID_STRIDE,
+   ...). report (may be NULL) is as a build's with nothing found. */
+KDRT_API kdrt_result kdrt_tree_load(const void *bytes, size_t size, const kdrt_triangles *mesh,
+                                    const kdrt_build_options *options, kdrt_tree **out_tree,
+                                    kdrt_build_report *report);
+/* What a saved tree's header says, for tools: read and checked as kdrt_tree_load() reads it
+   (magic, byte order, version, checksum, every field in range, the size), the sections and the
+   meshes not looked at. */
+typedef struct kdrt_saved_tree_info {
+    uint32_t version;           /* the format version (KDRT_SAVED_TREE_VERSION) */
+    uint64_t size;              /* bytes in the file */
+    uint32_t meshes;            /* 1 for kdrt_tree_save(); a scene's meshes (0 or more) */
+    uint32_t mesh_triangles;    /* the meshes' triangles, all of them */
+    /* The options the tree was built with, as given: builder, quality, intersector,
+       max_leaf_size, max_depth, costs, and of the flags KDRT_BUILD_SKIP_INVALID_TRIANGLES only;
+       allocator and scheduler zero. */
+    kdrt_build_options options;
+    uint32_t depth_limit;       /* options.max_depth as the build resolved it */
+    kdrt_aabb bounds;           /* kdrt_tree_bounds() */
+    kdrt_tree_stats stats;      /* the tree's, but kernel, bytes and sah_cost: 0 (a load's) */
+} kdrt_saved_tree_info;
+#define KDRT_SAVED_TREE_VERSION 1u
+KDRT_API kdrt_result kdrt_saved_tree_read_info(const void *bytes, size_t size,
+                                               kdrt_saved_tree_info *out_info);
+
 /* ==== scenes (see SCENES): many meshes and instances behind one query ==== */
 
 typedef enum kdrt_geometry_type {
@@ -953,6 +1162,23 @@ KDRT_API int kdrt_scene_spawn_ray(const kdrt_scene *scene, const kdrt_hit *hit, 
 /* kdrt_locate() in the scene's mesh tree, whose walk a ray's cell starts (instances start at
    their root); 0 without meshes. */
 KDRT_API uint32_t kdrt_scene_locate(const kdrt_scene *scene, const float point[3]);
+/* A baked scene (SCENES, SAVED TREES): the scene's mesh tree, as of the last commit, saved as
+   kdrt_tree_save() saves a tree (a scene without meshes saves a file of none), and its size. */
+KDRT_API size_t kdrt_scene_saved_size(const kdrt_scene *scene);
+KDRT_API kdrt_result kdrt_scene_save_meshes(const kdrt_scene *scene, kdrt_write_fn write,
+                                            void *user);
+/* kdrt_scene_build() with the mesh tree loaded from bytes (kdrt_scene_save_meshes()'s) instead of
+   built: the same entries as when it was saved (the same meshes under the same IDs; their masks,
+   flags and user pointers, and the instances, may differ). The scene takes the file's build
+   options (builder, quality, intersector, leaf size, depth, costs) for the mesh trees later
+   commits rebuild, and from options (NULL: defaults) the allocator, scheduler and kernel flags.
+   Errors: kdrt_scene_build()'s for the entries, kdrt_tree_load()'s for the file, with
+   KDRT_ERROR_MESH_MISMATCH naming in report->invalid_geometry the first mesh that differs
+   (KDRT_INVALID_ID when their number does). */
+KDRT_API kdrt_result kdrt_scene_load(const kdrt_geometry *geometries, uint32_t count,
+                                     const void *bytes, size_t size,
+                                     const kdrt_build_options *options, kdrt_scene **out_scene,
+                                     kdrt_build_report *report);
 
 /* ==== optics (see OPTICS): reflection, refraction, Fresnel reflectance, the medium stack ==== */
 
@@ -1328,8 +1554,13 @@ struct kdrt_tree {
     void *block_memory;   /* what was allocated for blocks */
     uint32_t *block_refs; /* [b]: the reference number of block b's lane 0 (inspection) */
     kdrt__cell *cells;    /* one a leaf, in depth-first order */
-    uint32_t *cell_of;    /* [node]: a leaf's index in cells (inner nodes: unused) */
+    uint32_t *cell_of;    /* [node]: a leaf's index in cells (inner nodes: KDRT__NO_ROPE) */
     kdrt_tree_stats stats;
+    /* What shaped it, for a save (SAVED TREES): the build's options as given, with flags only
+       KDRT_BUILD_SKIP_INVALID_TRIANGLES and no allocator or scheduler, and max_depth resolved. */
+    kdrt_build_options shape;
+    uint32_t depth_limit;
+    int in_place; /* loaded with KDRT_LOAD_IN_PLACE: the arrays are the caller's bytes */
 };
 
 /* ==== small helpers: floats, cross products, allocation ==== */
@@ -1530,6 +1761,17 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
         return "a scene's geometry ID is used twice, is KDRT_INVALID_ID, or names no instance";
     case KDRT_ERROR_INVALID_TRANSFORM:
         return "an instance transform is singular, has a NaN or infinite entry, or carries its tree beyond float's range";
+    case KDRT_ERROR_WRITE_FAILED: return "the write callback failed: the tree is not saved";
+    case KDRT_ERROR_NOT_A_SAVED_TREE: return "not a saved kdrt tree (no KDRTTREE magic)";
+    case KDRT_ERROR_FILE_VERSION:
+        return "a saved tree of another format version than this kdrt reads (save it again)";
+    case KDRT_ERROR_FILE_BYTE_ORDER: return "a saved tree whose byte order is not little-endian";
+    case KDRT_ERROR_FILE_SIZE:
+        return "a saved tree of another size than its header records (truncated, or bytes after its end)";
+    case KDRT_ERROR_FILE_CORRUPT:
+        return "a saved tree with a field no save writes (damaged or forged)";
+    case KDRT_ERROR_MESH_MISMATCH:
+        return "the meshes given are not those the tree was saved over (counts or hash differ)";
     }
     return "unknown kdrt_result";
 }
@@ -3340,8 +3582,9 @@ static double kdrt__sah_cost(const kdrt_tree *tree, double traversal_cost, doubl
 
 /* ==== kdrt_tree_build and its steps ==== */
 
-/* Options: KDRT_ERROR_INVALID_OPTION for an unknown builder, intersector or flag or a cost out
-   of range, KDRT_ERROR_NULL_ARGUMENT for an allocator with one hook of the two. */
+/* Options: KDRT_ERROR_INVALID_OPTION for an unknown builder, intersector or flag (a load's
+   KDRT_LOAD_IN_PLACE too: the loads take it off first) or a cost out of range,
+   KDRT_ERROR_NULL_ARGUMENT for an allocator with one hook of the two. */
 static kdrt_result kdrt__check_options(const kdrt_build_options *opt)
 {
     if (opt->builder != KDRT_BUILDER_DEFAULT && opt->builder != KDRT_BUILDER_MEDIAN &&
@@ -3427,6 +3670,10 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt__mesh
     tree->stats.kernel = (kdrt_kernel)tree->simd;
     tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
+    tree->shape = *opt;
+    tree->shape.flags &= (uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+    memset(&tree->shape.allocator, 0, sizeof tree->shape.allocator);
+    memset(&tree->shape.scheduler, 0, sizeof tree->shape.scheduler);
     return tree;
 }
 
@@ -3661,6 +3908,7 @@ static void kdrt__cells_of(kdrt_tree *tree, uint32_t node, const float lo[3], co
         const uint32_t axis = kdrt__node_axis(n), above = kdrt__node_above(n);
         float clo[3], chi[3];
         uint32_t crope[6];
+        tree->cell_of[node] = KDRT__NO_ROPE; /* defined, so that a saved tree's bytes are */
         memcpy(chi, hi, sizeof chi), memcpy(crope, rope, sizeof crope);
         chi[axis] = n->u.split, crope[2 * axis + 1] = above;
         kdrt__cells_of(tree, node + 1, lo, chi, crope, count);
@@ -3699,6 +3947,7 @@ static kdrt_result kdrt__build_tree(kdrt_tree *tree, const kdrt_build_options *o
     uint32_t *valid = NULL, n = 0;
     kdrt_result r;
     kdrt__builder_init(&b, opt, &tree->meshes);
+    tree->depth_limit = b.max_depth;
     r = kdrt__prepare_triangles(&b, &tree->meshes, opt->flags, &opt->scheduler, &tree->bounds,
                                 &scratch, &valid, &n, report);
     if (r == KDRT_SUCCESS) r = kdrt__build_nodes(&b, opt, valid, n, &tree->bounds);
@@ -3752,11 +4001,13 @@ KDRT_API void kdrt_tree_free(kdrt_tree *tree)
     kdrt_allocator a;
     if (!tree) return;
     a = tree->allocator;
-    kdrt__free(&a, tree->nodes);
-    kdrt__free(&a, tree->block_memory);
-    kdrt__free(&a, tree->block_refs);
-    kdrt__free(&a, tree->cells);
-    kdrt__free(&a, tree->cell_of);
+    if (!tree->in_place) {
+        kdrt__free(&a, tree->nodes);
+        kdrt__free(&a, tree->block_memory);
+        kdrt__free(&a, tree->block_refs);
+        kdrt__free(&a, tree->cells);
+        kdrt__free(&a, tree->cell_of);
+    }
     kdrt__free(&a, tree);
 }
 
@@ -5248,6 +5499,899 @@ KDRT_API int kdrt_spawn_ray(const kdrt_tree *tree, const kdrt_hit *hit, const fl
     return 1;
 }
 
+/* ==== saved trees: the file format (SAVED TREES) ==== */
+
+/* Little-endian on disk whatever the host: every section is 32-bit words (floats and uint32),
+   written as they lie in memory on a little-endian host and swapped word by word elsewhere. */
+static int kdrt__little_endian(void)
+{
+    const uint32_t one = 1u;
+    unsigned char first;
+    memcpy(&first, &one, 1);
+    return first == 1u;
+}
+
+static uint32_t kdrt__swap32(uint32_t x)
+{
+    return (x >> 24) | ((x >> 8) & 0xFF00u) | ((x << 8) & 0xFF0000u) | (x << 24);
+}
+
+static uint32_t kdrt__get32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint64_t kdrt__get64(const unsigned char *p)
+{
+    return (uint64_t)kdrt__get32(p) | (uint64_t)kdrt__get32(p + 4) << 32;
+}
+
+static void kdrt__put32(unsigned char *p, uint32_t x)
+{
+    p[0] = (unsigned char)x, p[1] = (unsigned char)(x >> 8);
+    p[2] = (unsigned char)(x >> 16), p[3] = (unsigned char)(x >> 24);
+}
+
+static void kdrt__put64(unsigned char *p, uint64_t x)
+{
+    kdrt__put32(p, (uint32_t)x);
+    kdrt__put32(p + 4, (uint32_t)(x >> 32));
+}
+
+static uint32_t kdrt__float_bits(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    return u;
+}
+
+static float kdrt__bits_float(uint32_t u)
+{
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+/* XXH64 (Yann Collet's xxHash, 64-bit, seed 0), streamed: the mesh fingerprint and the header's
+   checksum. Word-wise, four independent lanes: several GB/s, and any xxHash library computes
+   the same value from the same bytes. */
+#define KDRT__P1 0x9E3779B185EBCA87u
+#define KDRT__P2 0xC2B2AE3D27D4EB4Fu
+#define KDRT__P3 0x165667B19E3779F9u
+#define KDRT__P4 0x85EBCA77C2B2AE63u
+#define KDRT__P5 0x27D4EB2F165667C5u
+
+typedef struct kdrt__hash {
+    uint64_t v[4], length;
+    unsigned char tail[32];
+    uint32_t tail_size;
+} kdrt__hash;
+
+static uint64_t kdrt__rotl64(uint64_t x, unsigned r) { return (x << r) | (x >> (64u - r)); }
+
+/* Eight bytes as a little-endian number; one load where the host is little-endian. */
+static uint64_t kdrt__le64(const unsigned char *p, int little)
+{
+    uint64_t x;
+    if (!little) return kdrt__get64(p);
+    memcpy(&x, p, sizeof x);
+    return x;
+}
+
+static uint64_t kdrt__xxh_round(uint64_t acc, uint64_t input)
+{
+    acc += input * (uint64_t)KDRT__P2;
+    return kdrt__rotl64(acc, 31) * (uint64_t)KDRT__P1;
+}
+
+static void kdrt__hash_init(kdrt__hash *h)
+{
+    memset(h, 0, sizeof *h);
+    h->v[0] = (uint64_t)KDRT__P1 + (uint64_t)KDRT__P2;
+    h->v[1] = (uint64_t)KDRT__P2;
+    h->v[2] = 0;
+    h->v[3] = (uint64_t)0 - (uint64_t)KDRT__P1;
+}
+
+/* Whole 32-byte stripes from p, n of them. */
+static void kdrt__hash_stripes(kdrt__hash *h, const unsigned char *p, size_t n, int little)
+{
+    uint64_t v0 = h->v[0], v1 = h->v[1], v2 = h->v[2], v3 = h->v[3];
+    for (; n > 0; --n, p += 32) {
+        v0 = kdrt__xxh_round(v0, kdrt__le64(p, little));
+        v1 = kdrt__xxh_round(v1, kdrt__le64(p + 8, little));
+        v2 = kdrt__xxh_round(v2, kdrt__le64(p + 16, little));
+        v3 = kdrt__xxh_round(v3, kdrt__le64(p + 24, little));
+    }
+    h->v[0] = v0, h->v[1] = v1, h->v[2] = v2, h->v[3] = v3;
+}
+
+static void kdrt__hash_bytes(kdrt__hash *h, const void *data, size_t size)
+{
+    const unsigned char *p = (const unsigned char *)data;
+    const int little = kdrt__little_endian();
+    h->length += size;
+    if (h->tail_size) {
+        size_t take = 32u - h->tail_size;
+        if (take > size) take = size;
+        memcpy(h->tail + h->tail_size, p, take);
+        h->tail_size += (uint32_t)take, p += take, size -= take;
+        if (h->tail_size < 32u) return;
+        kdrt__hash_stripes(h, h->tail, 1, little);
+        h->tail_size = 0;
+    }
+    kdrt__hash_stripes(h, p, size / 32u, little);
+    p += size / 32u * 32u, size %= 32u;
+    if (size) memcpy(h->tail, p, size), h->tail_size = (uint32_t)size;
+}
+
+static uint64_t kdrt__xxh_merge(uint64_t acc, uint64_t v)
+{
+    acc ^= kdrt__xxh_round(0, v);
+    return acc * (uint64_t)KDRT__P1 + (uint64_t)KDRT__P4;
+}
+
+static uint64_t kdrt__hash_end(const kdrt__hash *h)
+{
+    const unsigned char *p = h->tail, *end = h->tail + h->tail_size;
+    uint64_t x;
+    int k;
+    if (h->length >= 32u) {
+        x = kdrt__rotl64(h->v[0], 1) + kdrt__rotl64(h->v[1], 7) + kdrt__rotl64(h->v[2], 12) +
+            kdrt__rotl64(h->v[3], 18);
+        for (k = 0; k < 4; ++k) x = kdrt__xxh_merge(x, h->v[k]);
+    } else {
+        x = (uint64_t)KDRT__P5;
+    }
+    x += h->length;
+    for (; p + 8 <= end; p += 8)
+        x = kdrt__rotl64(x ^ kdrt__xxh_round(0, kdrt__get64(p)), 27) * (uint64_t)KDRT__P1 +
+            (uint64_t)KDRT__P4;
+    if (p + 4 <= end) {
+        x ^= (uint64_t)kdrt__get32(p) * (uint64_t)KDRT__P1;
+        x = kdrt__rotl64(x, 23) * (uint64_t)KDRT__P2 + (uint64_t)KDRT__P3;
+        p += 4;
+    }
+    for (; p < end; ++p)
+        x = kdrt__rotl64(x ^ (uint64_t)*p * (uint64_t)KDRT__P5, 11) * (uint64_t)KDRT__P1;
+    x ^= x >> 33, x *= (uint64_t)KDRT__P2;
+    x ^= x >> 29, x *= (uint64_t)KDRT__P3;
+    return x ^ (x >> 32);
+}
+
+/* count 32-bit words from memory (floats or uint32), hashed as their little-endian bytes. */
+static void kdrt__hash_words(kdrt__hash *h, const void *words, size_t count)
+{
+    uint32_t buffer[256];
+    const unsigned char *p = (const unsigned char *)words;
+    if (kdrt__little_endian()) {
+        kdrt__hash_bytes(h, words, count * 4u);
+        return;
+    }
+    while (count) {
+        const size_t n = count < 256u ? count : 256u;
+        size_t i;
+        memcpy(buffer, p, n * 4u);
+        for (i = 0; i < n; ++i) buffer[i] = kdrt__swap32(buffer[i]);
+        kdrt__hash_bytes(h, buffer, n * 4u);
+        p += n * 4u, count -= n;
+    }
+}
+
+/* A mesh's fingerprint: XXH64 of its vertices' x, y, z floats (vertex_count of them, in order,
+   whatever the stride) and XXH64 of its indices (none for a soup), each as little-endian words.
+   Nothing is read from a mesh of no triangles, whose buffers may be NULL. */
+static void kdrt__mesh_hashes(const kdrt_triangles *m, uint64_t *positions, uint64_t *indices)
+{
+    kdrt__hash h;
+    kdrt__hash_init(&h);
+    if (m->triangle_count && m->position_stride == 3 * sizeof(float)) {
+        kdrt__hash_words(&h, m->positions, (size_t)m->vertex_count * 3u);
+    } else if (m->triangle_count) {
+        float buffer[3 * 128];
+        const unsigned char *base = (const unsigned char *)m->positions;
+        uint32_t v = 0;
+        while (v < m->vertex_count) {
+            const uint32_t n = m->vertex_count - v < 128u ? m->vertex_count - v : 128u;
+            uint32_t i;
+            for (i = 0; i < n; ++i)
+                memcpy(buffer + 3 * i, base + (size_t)(v + i) * m->position_stride,
+                       3 * sizeof(float));
+            kdrt__hash_words(&h, buffer, (size_t)n * 3u);
+            v += n;
+        }
+    }
+    *positions = kdrt__hash_end(&h);
+    kdrt__hash_init(&h);
+    if (m->triangle_count && m->indices)
+        kdrt__hash_words(&h, m->indices, (size_t)m->triangle_count * 3u);
+    *indices = kdrt__hash_end(&h);
+}
+
+/* The sections' checksum: a Fletcher sum over the stream of 32-bit little-endian words, in eight
+   lanes (word i of the stream goes to lane i mod 8: a[lane] += word, then b[lane] += a[lane],
+   both 32-bit, wrapping), ended by XXH64 of a[0..7], b[0..7] (little-endian 32-bit) and the
+   word count (64-bit). A word changed always changes a; words moved change b. Two additions a
+   word, eight lanes at once with SSE2: the load spends next to nothing on it. */
+typedef struct kdrt__sum {
+    uint32_t a[8], b[8];
+    uint64_t words;
+} kdrt__sum;
+
+static void kdrt__sum_word(kdrt__sum *s, uint32_t w)
+{
+    const size_t lane = (size_t)(s->words % 8u);
+    s->a[lane] += w, s->b[lane] += s->a[lane], s->words += 1u;
+}
+
+static void kdrt__sum_words(kdrt__sum *s, const void *data, size_t count)
+{
+    const unsigned char *p = (const unsigned char *)data;
+    const int little = kdrt__little_endian();
+    for (; count > 0 && s->words % 8u != 0; --count, p += 4) /* to lane 0 again */
+        kdrt__sum_word(s, kdrt__get32(p));
+#if defined(KDRT__SSE2)
+    {
+        __m128i a0 = _mm_loadu_si128((const __m128i *)(const void *)s->a);
+        __m128i a1 = _mm_loadu_si128((const __m128i *)(const void *)(s->a + 4));
+        __m128i b0 = _mm_loadu_si128((const __m128i *)(const void *)s->b);
+        __m128i b1 = _mm_loadu_si128((const __m128i *)(const void *)(s->b + 4));
+        const size_t groups = count / 8u;
+        size_t g;
+        for (g = 0; g < groups; ++g, p += 32) { /* x86 is little-endian */
+            a0 = _mm_add_epi32(a0, _mm_loadu_si128((const __m128i *)(const void *)p));
+            a1 = _mm_add_epi32(a1, _mm_loadu_si128((const __m128i *)(const void *)(p + 16)));
+            b0 = _mm_add_epi32(b0, a0);
+            b1 = _mm_add_epi32(b1, a1);
+        }
+        _mm_storeu_si128((__m128i *)(void *)s->a, a0);
+        _mm_storeu_si128((__m128i *)(void *)(s->a + 4), a1);
+        _mm_storeu_si128((__m128i *)(void *)s->b, b0);
+        _mm_storeu_si128((__m128i *)(void *)(s->b + 4), b1);
+        s->words += (uint64_t)groups * 8u, count -= groups * 8u;
+        (void)little;
+    }
+#else
+    for (; count >= 8u; count -= 8u, p += 32) {
+        uint32_t w[8];
+        int k;
+        memcpy(w, p, sizeof w);
+        for (k = 0; k < 8; ++k) {
+            s->a[k] += little ? w[k] : kdrt__swap32(w[k]);
+            s->b[k] += s->a[k];
+        }
+        s->words += 8u;
+    }
+#endif
+    for (; count > 0; --count, p += 4) kdrt__sum_word(s, kdrt__get32(p));
+}
+
+/* count words of memory summed as the file holds them: little-endian. */
+static void kdrt__sum_memory(kdrt__sum *s, const void *words, size_t count)
+{
+    uint32_t buffer[256];
+    const unsigned char *p = (const unsigned char *)words;
+    if (kdrt__little_endian()) {
+        kdrt__sum_words(s, words, count);
+        return;
+    }
+    while (count) {
+        const size_t n = count < 256u ? count : 256u;
+        size_t i;
+        for (i = 0; i < n; ++i) {
+            uint32_t w;
+            memcpy(&w, p + 4 * i, 4);
+            kdrt__put32((unsigned char *)(buffer + i), w);
+        }
+        kdrt__sum_words(s, buffer, n);
+        p += n * 4u, count -= n;
+    }
+}
+
+static uint64_t kdrt__sum_end(const kdrt__sum *s)
+{
+    unsigned char bytes[72];
+    kdrt__hash h;
+    int k;
+    for (k = 0; k < 8; ++k) kdrt__put32(bytes + 4 * k, s->a[k]), kdrt__put32(bytes + 32 + 4 * k, s->b[k]);
+    kdrt__put64(bytes + 64, s->words);
+    kdrt__hash_init(&h);
+    kdrt__hash_bytes(&h, bytes, sizeof bytes);
+    return kdrt__hash_end(&h);
+}
+
+/* The header: KDRT__HEADER_BYTES, fields at these offsets (the manual's table). */
+#define KDRT__HEADER_BYTES 256u
+/* The sections in the order of the file: blocks first, 64-byte aligned in a 64-byte aligned
+   buffer, so that a load may leave them where they are (KDRT_LOAD_IN_PLACE). */
+static const int kdrt__file_order[6] = {2, 1, 4, 3, 5, 0};
+#define KDRT__MESH_RECORD_BYTES 32u
+#define KDRT__SECTIONS 6
+#define KDRT__ORDER_MARK 0x01020304u
+/* Sections are hashed and compared in pieces of this many bytes, each piece still in the cache
+   for its second look. */
+#define KDRT__PIECE 16384u
+static const unsigned char kdrt__magic[8] = {'K', 'D', 'R', 'T', 'T', 'R', 'E', 'E'};
+/* Bytes a record of each section: meshes, nodes, blocks, block references, cells, cell map. */
+static const uint32_t kdrt__record_bytes[KDRT__SECTIONS] = {
+    KDRT__MESH_RECORD_BYTES, sizeof(kdrt__node), sizeof(kdrt__block), 4u, sizeof(kdrt__cell), 4u};
+
+/* A saved tree's header, read and checked. */
+typedef struct kdrt__file {
+    const unsigned char *bytes;
+    uint32_t meshes, nodes, leaves, blocks, triangles, max_depth, mesh_triangles, depth_limit;
+    uint64_t refs, size, meshes_hash, tree_hash;
+    uint64_t offset[KDRT__SECTIONS], count[KDRT__SECTIONS];
+    kdrt_build_options options;
+    kdrt_aabb bounds;
+} kdrt__file;
+
+/* The counts behind the sections of a tree (NULL: a scene without meshes). */
+static void kdrt__section_counts(const kdrt_tree *tree, uint64_t count[KDRT__SECTIONS])
+{
+    memset(count, 0, KDRT__SECTIONS * sizeof *count);
+    if (!tree) return;
+    count[0] = tree->meshes.count, count[1] = tree->stats.nodes, count[2] = tree->stats.blocks;
+    count[3] = tree->stats.blocks, count[4] = tree->stats.leaves, count[5] = tree->stats.nodes;
+}
+
+/* The tree's sections 1 to 5 in memory, and their sizes in bytes. */
+static void kdrt__sections(const kdrt_tree *tree, const void *section[KDRT__SECTIONS],
+                           size_t bytes[KDRT__SECTIONS])
+{
+    uint64_t count[KDRT__SECTIONS];
+    int k;
+    kdrt__section_counts(tree, count);
+    for (k = 0; k < KDRT__SECTIONS; ++k) bytes[k] = (size_t)count[k] * kdrt__record_bytes[k];
+    section[0] = NULL, section[1] = tree->nodes, section[2] = tree->blocks;
+    section[3] = tree->block_refs, section[4] = tree->cells, section[5] = tree->cell_of;
+}
+
+static uint64_t kdrt__saved_bytes(const uint64_t count[KDRT__SECTIONS])
+{
+    uint64_t bytes = KDRT__HEADER_BYTES;
+    int k;
+    for (k = 0; k < KDRT__SECTIONS; ++k) bytes += count[k] * kdrt__record_bytes[k];
+    return bytes;
+}
+
+/* Mesh record i of tree: its ID, counts, whether it has indices, and its fingerprint. */
+static void kdrt__mesh_record(const kdrt_tree *tree, uint32_t i,
+                              unsigned char out[KDRT__MESH_RECORD_BYTES])
+{
+    const kdrt__part *part = &tree->meshes.parts[i];
+    uint64_t positions, indices;
+    kdrt__mesh_hashes(&part->mesh, &positions, &indices);
+    kdrt__put32(out, part->id);
+    kdrt__put32(out + 4, part->mesh.triangle_count);
+    kdrt__put32(out + 8, part->mesh.vertex_count);
+    kdrt__put32(out + 12, part->mesh.indices ? 1u : 0u);
+    kdrt__put64(out + 16, positions);
+    kdrt__put64(out + 24, indices);
+}
+
+/* The header of tree (NULL: of no meshes, built with opt) into out, with the hashes of its
+   sections: meshes_hash of the mesh records, tree_hash of the sections after them. */
+static void kdrt__write_header(const kdrt_tree *tree, const kdrt_build_options *opt,
+                               uint32_t depth_limit, uint64_t meshes_hash, uint64_t tree_hash,
+                               unsigned char out[KDRT__HEADER_BYTES])
+{
+    uint64_t count[KDRT__SECTIONS];
+    kdrt__hash h;
+    kdrt_aabb box = tree ? tree->bounds : kdrt_aabb_empty();
+    int k;
+    kdrt__section_counts(tree, count);
+    memset(out, 0, KDRT__HEADER_BYTES);
+    memcpy(out, kdrt__magic, sizeof kdrt__magic);
+    kdrt__put32(out + 8, KDRT__ORDER_MARK);
+    kdrt__put32(out + 12, KDRT_SAVED_TREE_VERSION);
+    kdrt__put32(out + 16, KDRT__HEADER_BYTES);
+    kdrt__put32(out + 20, (uint32_t)count[0]);
+    kdrt__put64(out + 24, kdrt__saved_bytes(count));
+    for (k = 0; k < KDRT__SECTIONS; ++k)
+        kdrt__put64(out + 32 + 8 * k, count[k] * kdrt__record_bytes[k]);
+    if (tree) {
+        kdrt__put32(out + 80, tree->stats.nodes);
+        kdrt__put32(out + 84, tree->stats.leaves);
+        kdrt__put32(out + 88, tree->stats.blocks);
+        kdrt__put32(out + 92, tree->stats.triangles);
+        kdrt__put64(out + 96, tree->stats.triangle_refs);
+        kdrt__put32(out + 104, tree->stats.max_depth);
+        kdrt__put32(out + 108, tree->meshes.triangles);
+    }
+    kdrt__put32(out + 112, (uint32_t)opt->builder);
+    kdrt__put32(out + 116, (uint32_t)opt->quality);
+    kdrt__put32(out + 120, (uint32_t)opt->intersector);
+    kdrt__put32(out + 124, opt->max_leaf_size);
+    kdrt__put32(out + 128, opt->max_depth);
+    kdrt__put32(out + 132, depth_limit);
+    kdrt__put32(out + 136, opt->flags & (uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES);
+    kdrt__put32(out + 140, kdrt__float_bits(opt->sah_traversal_cost));
+    kdrt__put32(out + 144, kdrt__float_bits(opt->sah_intersection_cost));
+    kdrt__put32(out + 148, kdrt__float_bits(opt->sah_empty_bonus));
+    kdrt__put32(out + 152, KDRT_SAH_BINS);
+    kdrt__put32(out + 156, KDRT_SAH_EXACT_MAX);
+    kdrt__put32(out + 160, KDRT_SAH_REFERENCE_BUDGET);
+    for (k = 0; k < 3; ++k) {
+        kdrt__put32(out + 164 + 4 * k, kdrt__float_bits(box.min[k]));
+        kdrt__put32(out + 176 + 4 * k, kdrt__float_bits(box.max[k]));
+    }
+    /* 188 and 208 to 247: reserved, 0 */
+    kdrt__put64(out + 192, meshes_hash);
+    kdrt__put64(out + 200, tree_hash);
+    kdrt__hash_init(&h);
+    kdrt__hash_bytes(&h, out, KDRT__HEADER_BYTES - 8u);
+    kdrt__put64(out + KDRT__HEADER_BYTES - 8u, kdrt__hash_end(&h));
+}
+
+/* The bounds a tree of `triangles` usable ones may have: kdrt_aabb_empty()'s bits with none,
+   else a finite box. */
+static int kdrt__bounds_ok(const kdrt_aabb *b, uint32_t triangles)
+{
+    const kdrt_aabb empty = kdrt_aabb_empty();
+    int a;
+    if (triangles == 0) return memcmp(b, &empty, sizeof empty) == 0;
+    for (a = 0; a < 3; ++a)
+        if (!kdrt__finite(b->min[a]) || !kdrt__finite(b->max[a]) || !(b->min[a] <= b->max[a]))
+            return 0;
+    return 1;
+}
+
+/* Reads and checks the header of the size bytes at bytes: the magic, byte order, version and
+   checksum first (each with its own result), then every field, the sections' sizes against
+   their counts and the file's size. */
+static kdrt_result kdrt__read_header(const void *data, size_t size, kdrt__file *f)
+{
+    const unsigned char *p = (const unsigned char *)data;
+    kdrt__hash h;
+    uint64_t total = KDRT__HEADER_BYTES;
+    uint32_t bins, budget, reserved;
+    int k;
+    memset(f, 0, sizeof *f);
+    if (!data) return KDRT_ERROR_NULL_ARGUMENT;
+    if (memcmp(p, kdrt__magic, size < 8u ? size : 8u) != 0) return KDRT_ERROR_NOT_A_SAVED_TREE;
+    if (size < 16u) return KDRT_ERROR_FILE_SIZE; /* a magic's start, or the magic alone */
+    if (kdrt__get32(p + 8) != KDRT__ORDER_MARK) {
+        if (kdrt__get32(p + 8) == kdrt__swap32(KDRT__ORDER_MARK)) return KDRT_ERROR_FILE_BYTE_ORDER;
+        return KDRT_ERROR_FILE_CORRUPT;
+    }
+    if (kdrt__get32(p + 12) != KDRT_SAVED_TREE_VERSION) return KDRT_ERROR_FILE_VERSION;
+    if (size < KDRT__HEADER_BYTES) return KDRT_ERROR_FILE_SIZE;
+    kdrt__hash_init(&h);
+    kdrt__hash_bytes(&h, p, KDRT__HEADER_BYTES - 8u);
+    if (kdrt__hash_end(&h) != kdrt__get64(p + KDRT__HEADER_BYTES - 8u))
+        return KDRT_ERROR_FILE_CORRUPT;
+    /* The checksum holds: every field as a save wrote it, unless the file was forged. */
+    f->bytes = p;
+    f->meshes = kdrt__get32(p + 20);
+    f->size = kdrt__get64(p + 24);
+    f->nodes = kdrt__get32(p + 80), f->leaves = kdrt__get32(p + 84);
+    f->blocks = kdrt__get32(p + 88), f->triangles = kdrt__get32(p + 92);
+    f->refs = kdrt__get64(p + 96), f->max_depth = kdrt__get32(p + 104);
+    f->mesh_triangles = kdrt__get32(p + 108);
+    f->options.builder = (kdrt_builder)kdrt__get32(p + 112);
+    f->options.quality = (kdrt_build_quality)kdrt__get32(p + 116);
+    f->options.intersector = (kdrt_intersector)kdrt__get32(p + 120);
+    f->options.max_leaf_size = kdrt__get32(p + 124);
+    f->options.max_depth = kdrt__get32(p + 128);
+    f->depth_limit = kdrt__get32(p + 132);
+    f->options.flags = kdrt__get32(p + 136);
+    f->options.sah_traversal_cost = kdrt__bits_float(kdrt__get32(p + 140));
+    f->options.sah_intersection_cost = kdrt__bits_float(kdrt__get32(p + 144));
+    f->options.sah_empty_bonus = kdrt__bits_float(kdrt__get32(p + 148));
+    bins = kdrt__get32(p + 152), budget = kdrt__get32(p + 160);
+    /* 156, KDRT_SAH_EXACT_MAX: any value is one it may take */
+    for (k = 0; k < 3; ++k) {
+        f->bounds.min[k] = kdrt__bits_float(kdrt__get32(p + 164 + 4 * k));
+        f->bounds.max[k] = kdrt__bits_float(kdrt__get32(p + 176 + 4 * k));
+    }
+    reserved = kdrt__get32(p + 188);
+    f->meshes_hash = kdrt__get64(p + 192), f->tree_hash = kdrt__get64(p + 200);
+    f->count[0] = f->meshes, f->count[1] = f->nodes, f->count[2] = f->blocks;
+    f->count[3] = f->blocks, f->count[4] = f->leaves, f->count[5] = f->nodes;
+    for (k = 0; k < KDRT__SECTIONS; ++k) {
+        const int section = kdrt__file_order[k];
+        if (kdrt__get64(p + 32 + 8 * section) != f->count[section] * kdrt__record_bytes[section])
+            return KDRT_ERROR_FILE_CORRUPT;
+        f->offset[section] = total;
+        total += f->count[section] * kdrt__record_bytes[section]; /* counts < 2^32: no overflow */
+    }
+    for (k = 208; k < (int)KDRT__HEADER_BYTES - 8; k += 4) reserved |= kdrt__get32(p + k);
+    if (kdrt__get32(p + 16) != KDRT__HEADER_BYTES || total != f->size || reserved != 0)
+        return KDRT_ERROR_FILE_CORRUPT;
+    if (kdrt__check_options(&f->options) != KDRT_SUCCESS ||
+        (f->options.flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) || bins < 2u ||
+        bins > 1024u || budget < 1u || budget > 64u || f->depth_limit > KDRT_MAX_DEPTH ||
+        f->depth_limit != (f->options.max_depth == 0 ? kdrt__default_depth(f->mesh_triangles)
+                           : f->options.max_depth < KDRT_MAX_DEPTH ? f->options.max_depth
+                                                                   : KDRT_MAX_DEPTH))
+        return KDRT_ERROR_FILE_CORRUPT;
+    if (f->meshes == 0) {
+        /* A scene without meshes: nothing else. */
+        if (f->nodes || f->leaves || f->blocks || f->triangles || f->refs || f->max_depth ||
+            f->mesh_triangles || !kdrt__bounds_ok(&f->bounds, 0))
+            return KDRT_ERROR_FILE_CORRUPT;
+    } else if (f->nodes == 0 || f->nodes % 2u == 0 || f->leaves != f->nodes / 2u + 1u ||
+               f->triangles > f->mesh_triangles || f->mesh_triangles > KDRT_MAX_TRIANGLES ||
+               (f->triangles == 0) != (f->refs == 0) || f->refs > 0xFFFFFFFFu ||
+               f->blocks > f->refs || f->refs > (uint64_t)f->blocks * KDRT__LANES ||
+               f->max_depth > f->depth_limit || !kdrt__bounds_ok(&f->bounds, f->triangles)) {
+        return KDRT_ERROR_FILE_CORRUPT;
+    }
+    if (f->size != size) return KDRT_ERROR_FILE_SIZE;
+    return KDRT_SUCCESS;
+}
+
+/* The file's mesh records (hashed first: a damaged one is a corrupt file) against the meshes
+   given: KDRT_ERROR_MESH_MISMATCH, with *bad the index of the first that differs (count when
+   their numbers differ). */
+static kdrt_result kdrt__check_meshes(const kdrt__file *f, const kdrt__meshes *m, uint32_t *bad)
+{
+    kdrt__hash h;
+    uint32_t i;
+    *bad = m->count;
+    kdrt__hash_init(&h);
+    kdrt__hash_bytes(&h, f->bytes + f->offset[0], (size_t)f->meshes * KDRT__MESH_RECORD_BYTES);
+    if (kdrt__hash_end(&h) != f->meshes_hash) return KDRT_ERROR_FILE_CORRUPT;
+    if (f->meshes != m->count) return KDRT_ERROR_MESH_MISMATCH;
+    for (i = 0; i < m->count; ++i) {
+        const unsigned char *r = f->bytes + f->offset[0] + (size_t)i * KDRT__MESH_RECORD_BYTES;
+        const kdrt_triangles *mesh = &m->parts[i].mesh;
+        uint64_t positions, indices;
+        *bad = i;
+        if (kdrt__get32(r) != m->parts[i].id || kdrt__get32(r + 4) != mesh->triangle_count ||
+            kdrt__get32(r + 8) != mesh->vertex_count ||
+            kdrt__get32(r + 12) != (mesh->indices ? 1u : 0u))
+            return KDRT_ERROR_MESH_MISMATCH;
+        kdrt__mesh_hashes(mesh, &positions, &indices);
+        if (kdrt__get64(r + 16) != positions || kdrt__get64(r + 24) != indices)
+            return KDRT_ERROR_MESH_MISMATCH;
+    }
+    *bad = m->count;
+    /* The same records give the same total (a forged header may say otherwise). */
+    return f->mesh_triangles == m->triangles ? KDRT_SUCCESS : KDRT_ERROR_FILE_CORRUPT;
+}
+
+/* count words of the file at in into memory at out. */
+static void kdrt__copy_words(void *out, const unsigned char *in, size_t words)
+{
+    if (words == 0) return;
+    memcpy(out, in, words * 4u);
+    if (!kdrt__little_endian()) {
+        uint32_t *w = (uint32_t *)out;
+        size_t i;
+        for (i = 0; i < words; ++i) w[i] = kdrt__swap32(w[i]);
+    }
+}
+
+/* The nodes, and the sections made from them, checked in one pass over the file's nodes in
+   array order, which must be the depth-first order a build lays them out in: each inner node's
+   below child next, its above child further on and reached exactly when the below subtree ends,
+   so that no index repeats and there is no cycle; depth at most the file's depth limit; each
+   split finite and within its node's box (the tree's bounds cut by the ancestors' splits); each
+   leaf's first block the count of blocks before it, and the counts of leaves, blocks, references
+   and the deepest leaf the header's. The file's block references, cells and cell map are checked
+   against the same walk: each block's first reference, each cell's box bit for bit and its ropes
+   nodes of the tree (or none), each node's entry in the map. The SAH cost adds up on the way, as
+   kdrt__sah_cost adds it (the same order and operations). */
+static kdrt_result kdrt__check_nodes(kdrt_tree *tree, const kdrt__file *f, double trav,
+                                     double isect)
+{
+    struct { uint32_t node, depth; float lo[3], hi[3]; } stack[KDRT_MAX_DEPTH + 1], at;
+    const unsigned char *nodes_in = f->bytes + f->offset[1], *refs_in = f->bytes + f->offset[3];
+    const unsigned char *cells_in = f->bytes + f->offset[4], *map_in = f->bytes + f->offset[5];
+    const double root_area = kdrt__half_area(f->bounds.min, f->bounds.max);
+    const int costed = f->triangles != 0 && root_area > 0.0;
+    double cost = 0.0;
+    uint32_t i, sp = 0, leaves = 0, blocks = 0, deepest = 0, k;
+    uint64_t refs = 0;
+    at.node = 0, at.depth = 0;
+    memcpy(at.lo, f->bounds.min, sizeof at.lo), memcpy(at.hi, f->bounds.max, sizeof at.hi);
+    for (i = 0; i < f->nodes; ++i) {
+        kdrt__node node, *n = &node;
+        const double share = costed ? kdrt__half_area(at.lo, at.hi) / root_area : 0.0;
+        n->u.first = kdrt__get32(nodes_in + 8 * (size_t)i);
+        n->bits = kdrt__get32(nodes_in + 8 * (size_t)i + 4u);
+        if (at.node != i || at.depth > f->depth_limit) return KDRT_ERROR_FILE_CORRUPT;
+        if (kdrt__node_is_leaf(n)) {
+            const uint32_t count = kdrt__node_count(n);
+            const uint32_t used = (count + KDRT__LANES - 1u) / KDRT__LANES;
+            const unsigned char *cell = cells_in + (size_t)leaves * sizeof(kdrt__cell);
+            if (n->u.first != blocks || used > f->blocks - blocks || leaves >= f->leaves ||
+                kdrt__get32(map_in + 4 * (size_t)i) != leaves)
+                return KDRT_ERROR_FILE_CORRUPT;
+            for (k = 0; k < used; ++k)
+                if (kdrt__get32(refs_in + 4 * ((size_t)blocks + k)) !=
+                    (uint32_t)refs + k * KDRT__LANES)
+                    return KDRT_ERROR_FILE_CORRUPT;
+            for (k = 0; k < 3; ++k)
+                if (kdrt__get32(cell + 4 * k) != kdrt__float_bits(at.lo[k]) ||
+                    kdrt__get32(cell + 12 + 4 * k) != kdrt__float_bits(at.hi[k]))
+                    return KDRT_ERROR_FILE_CORRUPT;
+            for (k = 0; k < 6; ++k) {
+                const uint32_t rope = kdrt__get32(cell + 24 + 4 * k);
+                if (rope >= f->nodes && rope != KDRT__NO_ROPE) return KDRT_ERROR_FILE_CORRUPT;
+            }
+            cost += share * isect * kdrt__leaf_blocks(count);
+            blocks += used, refs += count, ++leaves;
+            if (refs > f->refs) return KDRT_ERROR_FILE_CORRUPT;
+            if (at.depth > deepest) deepest = at.depth;
+            if (sp == 0) {
+                at.node = KDRT__NO_ROPE; /* the walk is over: no node may follow */
+                continue;
+            }
+            at = stack[--sp];
+        } else {
+            const uint32_t axis = kdrt__node_axis(n), above = kdrt__node_above(n);
+            const float split = n->u.split;
+            if (above <= i + 1u || above >= f->nodes || !kdrt__finite(split) ||
+                !(at.lo[axis] <= split && split <= at.hi[axis]) || sp >= KDRT_MAX_DEPTH ||
+                kdrt__get32(map_in + 4 * (size_t)i) != KDRT__NO_ROPE)
+                return KDRT_ERROR_FILE_CORRUPT;
+            cost += share * trav;
+            stack[sp] = at; /* the above child, reached when the below subtree ends */
+            stack[sp].node = above, stack[sp].depth = at.depth + 1u;
+            stack[sp++].lo[axis] = split;
+            at.node = i + 1u, at.depth += 1u;
+            at.hi[axis] = split;
+        }
+    }
+    if (at.node != KDRT__NO_ROPE || leaves != f->leaves || blocks != f->blocks ||
+        refs != f->refs || deepest != f->max_depth)
+        return KDRT_ERROR_FILE_CORRUPT;
+    tree->stats.sah_cost = costed ? cost : isect * kdrt__leaf_blocks(f->refs);
+    return KDRT_SUCCESS;
+}
+
+/* The blocks, summed into s and checked, copied first a piece at a time unless the tree uses
+   them in place: every lane's triangle below the meshes' count, and a leaf's last block filled up
+   as the build fills it, with copies of its last triangle (its number and its corners). The
+   lanes' counts come from the checked nodes, read from the file. */
+static kdrt_result kdrt__load_blocks(kdrt_tree *tree, const kdrt__file *f, kdrt__sum *s)
+{
+    const unsigned char *in = f->bytes + f->offset[2], *nodes_in = f->bytes + f->offset[1];
+    const uint32_t triangles = tree->meshes.triangles, piece = KDRT__PIECE / sizeof(kdrt__block);
+    uint32_t node = 0, left = 0, b, end;
+    for (b = 0; b < f->blocks; b = end) {
+        end = f->blocks - b < piece ? f->blocks : b + piece;
+        if (tree->block_memory)
+            kdrt__copy_words(&tree->blocks[b], in + (size_t)b * sizeof(kdrt__block),
+                             (size_t)(end - b) * (sizeof(kdrt__block) / 4u));
+        kdrt__sum_words(s, in + (size_t)b * sizeof(kdrt__block),
+                        (size_t)(end - b) * (sizeof(kdrt__block) / 4u));
+        for (; b < end; ++b) {
+            const kdrt__block *block = &tree->blocks[b];
+            uint32_t real, lane, c;
+            while (left == 0) { /* the next leaf with triangles: the checked nodes have them */
+                const uint32_t bits = kdrt__get32(nodes_in + 8 * (size_t)node++ + 4u);
+                if ((bits & 3u) == KDRT__LEAF) left = bits >> 2;
+            }
+            real = left < KDRT__LANES ? left : KDRT__LANES;
+            left -= real;
+            for (lane = 0; lane < real; ++lane)
+                if (block->id[lane] >= triangles) return KDRT_ERROR_FILE_CORRUPT;
+            for (; lane < KDRT__LANES; ++lane) {
+                if (block->id[lane] != block->id[real - 1u]) return KDRT_ERROR_FILE_CORRUPT;
+                for (c = 0; c < 9; ++c)
+                    if (kdrt__float_bits(block->corner[c][lane]) !=
+                        kdrt__float_bits(block->corner[c][real - 1u]))
+                        return KDRT_ERROR_FILE_CORRUPT;
+            }
+        }
+    }
+    return KDRT_SUCCESS;
+}
+
+/* Section k of the file summed into s, and copied to mem unless mem is the file's own. */
+static void kdrt__copy_section(kdrt__sum *s, void *mem, const kdrt__file *f, int k)
+{
+    const unsigned char *in = f->bytes + f->offset[k];
+    unsigned char *out = (unsigned char *)mem;
+    size_t bytes = (size_t)f->count[k] * kdrt__record_bytes[k];
+    while (bytes) {
+        const size_t n = bytes < KDRT__PIECE ? bytes : KDRT__PIECE;
+        if (out != in) kdrt__copy_words(out, in, n / 4u);
+        kdrt__sum_words(s, in, n / 4u);
+        out += n, in += n, bytes -= n;
+    }
+}
+
+/* The tree's arrays from the file f over its meshes (the header and meshes checked): the nodes
+   and what is made from them checked in one pass, the blocks' lanes as they are copied, each
+   other section copied as it is, then the sections' checksum. In place (the flag, a 64-byte
+   aligned file and a little-endian host) the arrays are the file's, nothing copied. On failure
+   frees the tree. */
+static kdrt_result kdrt__load_tree(kdrt_tree *tree, const kdrt__file *f, uint32_t flags)
+{
+    const kdrt_allocator *a = &tree->allocator;
+    const float trav = f->options.sah_traversal_cost > 0.0f ? f->options.sah_traversal_cost
+                                                           : KDRT_DEFAULT_SAH_TRAVERSAL_COST;
+    const float isect = f->options.sah_intersection_cost > 0.0f
+                            ? f->options.sah_intersection_cost
+                            : KDRT_DEFAULT_SAH_INTERSECTION_COST;
+    kdrt__sum s;
+    kdrt_result r = KDRT_SUCCESS;
+    tree->watertight = f->options.intersector != KDRT_INTERSECTOR_FAST;
+    tree->shape = f->options, tree->depth_limit = f->depth_limit;
+    tree->bounds = f->bounds;
+    tree->stats.triangles = f->triangles, tree->stats.nodes = f->nodes;
+    tree->stats.leaves = f->leaves, tree->stats.max_depth = f->max_depth;
+    tree->stats.triangle_refs = f->refs, tree->stats.blocks = f->blocks;
+    tree->stats.bytes = sizeof *tree;
+    tree->in_place = (flags & (uint32_t)KDRT_LOAD_IN_PLACE) && kdrt__little_endian() &&
+                     (uintptr_t)f->bytes % 64u == 0;
+    if (tree->in_place) {
+        /* The file's own sections: blocks at a multiple of 64 bytes, the rest of 4. */
+        tree->blocks = (kdrt__block *)(uintptr_t)(f->bytes + f->offset[2]);
+        tree->nodes = (kdrt__node *)(uintptr_t)(f->bytes + f->offset[1]);
+        tree->block_refs = (uint32_t *)(uintptr_t)(f->bytes + f->offset[3]);
+        tree->cells = (kdrt__cell *)(uintptr_t)(f->bytes + f->offset[4]);
+        tree->cell_of = (uint32_t *)(uintptr_t)(f->bytes + f->offset[5]);
+    } else {
+        /* Each array is no larger than its section: memory bounded by the file's size. */
+        tree->nodes = (kdrt__node *)kdrt__alloc(a, (size_t)f->nodes * sizeof(kdrt__node));
+        tree->cells = (kdrt__cell *)kdrt__alloc(a, (size_t)f->leaves * sizeof(kdrt__cell));
+        tree->cell_of = (uint32_t *)kdrt__alloc(a, (size_t)f->nodes * sizeof(uint32_t));
+        if (f->blocks) {
+            tree->block_memory = kdrt__alloc(a, (size_t)f->blocks * sizeof(kdrt__block) + 63u);
+            tree->block_refs = (uint32_t *)kdrt__alloc(a, (size_t)f->blocks * sizeof(uint32_t));
+        }
+        if (!tree->nodes || !tree->cells || !tree->cell_of ||
+            (f->blocks && (!tree->block_memory || !tree->block_refs)))
+            r = KDRT_ERROR_OUT_OF_MEMORY;
+        if (tree->block_memory)
+            tree->blocks = (kdrt__block *)((char *)tree->block_memory +
+                                           ((64u - (uintptr_t)tree->block_memory % 64u) % 64u));
+        tree->stats.bytes += (size_t)f->nodes * sizeof(kdrt__node) +
+                             (size_t)f->blocks * (sizeof(kdrt__block) + sizeof(uint32_t)) +
+                             (tree->block_memory ? 63u : 0u) +
+                             (size_t)f->leaves * sizeof(kdrt__cell) +
+                             (size_t)f->nodes * sizeof(uint32_t);
+    }
+    memset(&s, 0, sizeof s);
+    if (r == KDRT_SUCCESS) r = kdrt__check_nodes(tree, f, trav, isect);
+    if (r == KDRT_SUCCESS) r = kdrt__load_blocks(tree, f, &s);
+    if (r == KDRT_SUCCESS) {
+        kdrt__copy_section(&s, tree->nodes, f, 1);
+        kdrt__copy_section(&s, tree->cells, f, 4);
+        kdrt__copy_section(&s, tree->block_refs, f, 3);
+        kdrt__copy_section(&s, tree->cell_of, f, 5);
+        if (kdrt__sum_end(&s) != f->tree_hash) r = KDRT_ERROR_FILE_CORRUPT;
+    }
+    if (r != KDRT_SUCCESS) kdrt_tree_free(tree);
+    return r;
+}
+
+/* The bytes of tree (NULL: a scene without meshes, built with opt) through write: the header,
+   the tree's sections in the file's order, the mesh records. The checksums come first, in the
+   header: the records are made twice, hashed then written. */
+static kdrt_result kdrt__save(const kdrt_tree *tree, const kdrt_build_options *opt,
+                              uint32_t depth_limit, kdrt_write_fn write, void *user)
+{
+    unsigned char header[KDRT__HEADER_BYTES], record[KDRT__MESH_RECORD_BYTES];
+    const void *section[KDRT__SECTIONS];
+    size_t bytes[KDRT__SECTIONS];
+    kdrt__hash meshes;
+    kdrt__sum rest;
+    uint32_t i;
+    int k;
+    if (!write) return KDRT_ERROR_NULL_ARGUMENT;
+    kdrt__hash_init(&meshes);
+    memset(&rest, 0, sizeof rest);
+    if (tree) {
+        kdrt__sections(tree, section, bytes);
+        for (i = 0; i < tree->meshes.count; ++i) {
+            kdrt__mesh_record(tree, i, record);
+            kdrt__hash_bytes(&meshes, record, sizeof record);
+        }
+        for (k = 0; k < KDRT__SECTIONS - 1; ++k)
+            kdrt__sum_memory(&rest, section[kdrt__file_order[k]], bytes[kdrt__file_order[k]] / 4u);
+    }
+    kdrt__write_header(tree, opt, depth_limit, kdrt__hash_end(&meshes), kdrt__sum_end(&rest),
+                       header);
+    if (!write(user, header, sizeof header)) return KDRT_ERROR_WRITE_FAILED;
+    if (!tree) return KDRT_SUCCESS;
+    for (k = 0; k < KDRT__SECTIONS - 1; ++k) {
+        const unsigned char *p = (const unsigned char *)section[kdrt__file_order[k]];
+        size_t left = bytes[kdrt__file_order[k]] / 4u;
+        if (left == 0) continue;
+        if (kdrt__little_endian()) {
+            if (!write(user, p, left * 4u)) return KDRT_ERROR_WRITE_FAILED;
+            continue;
+        }
+        while (left) {
+            uint32_t buffer[256];
+            const size_t n = left < 256u ? left : 256u;
+            size_t w;
+            memcpy(buffer, p, n * 4u);
+            for (w = 0; w < n; ++w) buffer[w] = kdrt__swap32(buffer[w]);
+            if (!write(user, buffer, n * 4u)) return KDRT_ERROR_WRITE_FAILED;
+            p += n * 4u, left -= n;
+        }
+    }
+    for (i = 0; i < tree->meshes.count; ++i) {
+        kdrt__mesh_record(tree, i, record);
+        if (!write(user, record, sizeof record)) return KDRT_ERROR_WRITE_FAILED;
+    }
+    return KDRT_SUCCESS;
+}
+
+/* A load's options: a build's, and KDRT_LOAD_IN_PLACE. */
+static kdrt_result kdrt__check_load_options(const kdrt_build_options *opt)
+{
+    kdrt_build_options build = *opt;
+    build.flags &= ~(uint32_t)KDRT_LOAD_IN_PLACE;
+    return kdrt__check_options(&build);
+}
+
+KDRT_API size_t kdrt_tree_saved_size(const kdrt_tree *tree)
+{
+    uint64_t count[KDRT__SECTIONS];
+    if (!tree) return 0;
+    kdrt__section_counts(tree, count);
+    return (size_t)kdrt__saved_bytes(count);
+}
+
+KDRT_API kdrt_result kdrt_tree_save(const kdrt_tree *tree, kdrt_write_fn write, void *user)
+{
+    if (!tree) return KDRT_ERROR_NULL_ARGUMENT;
+    return kdrt__save(tree, &tree->shape, tree->depth_limit, write, user);
+}
+
+KDRT_API kdrt_result kdrt_saved_tree_read_info(const void *bytes, size_t size,
+                                               kdrt_saved_tree_info *out_info)
+{
+    kdrt__file f;
+    kdrt_result r;
+    if (!out_info) return KDRT_ERROR_NULL_ARGUMENT;
+    memset(out_info, 0, sizeof *out_info);
+    r = kdrt__read_header(bytes, size, &f);
+    if (r != KDRT_SUCCESS) return r;
+    out_info->version = KDRT_SAVED_TREE_VERSION;
+    out_info->size = f.size;
+    out_info->meshes = f.meshes;
+    out_info->mesh_triangles = f.mesh_triangles;
+    out_info->options = f.options;
+    out_info->depth_limit = f.depth_limit;
+    out_info->bounds = f.bounds;
+    out_info->stats.triangles = f.triangles, out_info->stats.nodes = f.nodes;
+    out_info->stats.leaves = f.leaves, out_info->stats.max_depth = f.max_depth;
+    out_info->stats.triangle_refs = f.refs, out_info->stats.blocks = f.blocks;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_tree_load(const void *bytes, size_t size, const kdrt_triangles *mesh,
+                                    const kdrt_build_options *options, kdrt_tree **out_tree,
+                                    kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt_triangles m;
+    kdrt__file f;
+    kdrt_tree *tree;
+    uint32_t bad;
+    kdrt_result r;
+    kdrt__report_init(report);
+    if (!out_tree) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_tree = NULL;
+    r = kdrt__check_view(mesh, &m);
+    if (r == KDRT_SUCCESS) r = kdrt__check_load_options(&opt);
+    if (r == KDRT_SUCCESS) r = kdrt__read_header(bytes, size, &f);
+    if (r != KDRT_SUCCESS) return r;
+    opt.intersector = f.options.intersector; /* the kernel's choice as a build makes it */
+    tree = kdrt__tree_new(&opt, NULL);
+    if (!tree) return KDRT_ERROR_OUT_OF_MEMORY;
+    tree->one.mesh = m, tree->one.mask = 0xFFFFFFFFu;
+    tree->meshes.triangles = m.triangle_count;
+    r = kdrt__check_meshes(&f, &tree->meshes, &bad);
+    if (r != KDRT_SUCCESS) {
+        kdrt_tree_free(tree);
+        return r;
+    }
+    r = kdrt__load_tree(tree, &f, opt.flags); /* frees it on failure */
+    if (r == KDRT_SUCCESS) *out_tree = tree;
+    return r;
+}
+
 /* ==== scenes: meshes in one tree, instances under a top-level tree ==== */
 
 
@@ -5304,6 +6448,7 @@ struct kdrt_scene {
     kdrt_geometry *next;
     uint32_t next_count, next_capacity;
     int entries_changed, meshes_changed, moved;
+    const kdrt__file *load; /* kdrt_scene_load()'s first commit: the mesh tree from this file */
 };
 
 KDRT_API kdrt_geometry kdrt_mesh_geometry(uint32_t id, const kdrt_triangles *mesh)
@@ -5849,12 +6994,25 @@ static kdrt_result kdrt__build_meshes(const kdrt_scene *sc, const kdrt__layout *
     kdrt__meshes m;
     kdrt_result r;
     *out = NULL;
-    if (l->part_count == 0) return KDRT_SUCCESS;
     m.parts = l->parts, m.count = l->part_count;
-    m.triangles = l->parts[m.count - 1].first + l->parts[m.count - 1].mesh.triangle_count;
+    m.triangles = m.count ? l->parts[m.count - 1].first + l->parts[m.count - 1].mesh.triangle_count
+                          : 0u;
+    if (sc->load) {
+        /* The file's meshes must be these, in ID order: the first that differs is named. */
+        uint32_t bad;
+        r = kdrt__check_meshes(sc->load, &m, &bad);
+        if (r != KDRT_SUCCESS) {
+            if (report) report->invalid_geometry = bad < m.count ? m.parts[bad].id : KDRT_INVALID_ID;
+            return r;
+        }
+    }
+    if (l->part_count == 0) return KDRT_SUCCESS;
     *out = kdrt__tree_new(&sc->options, &m);
     if (!*out) return KDRT_ERROR_OUT_OF_MEMORY;
-    r = kdrt__build_tree(*out, &sc->options, report); /* frees it on failure */
+    if (sc->load)
+        r = kdrt__load_tree(*out, sc->load, sc->options.flags); /* frees it on failure */
+    else
+        r = kdrt__build_tree(*out, &sc->options, report); /* frees it on failure */
     if (r != KDRT_SUCCESS) *out = NULL;
     if (report && report->invalid_triangle != KDRT_INVALID_ID) {
         /* The tree numbers triangles across the meshes: name the mesh and its own, for a
@@ -5978,24 +7136,20 @@ static kdrt_result kdrt__next_reserve(kdrt_scene *sc)
                          sc->next_count + 1u, sizeof *sc->next);
 }
 
-KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t count,
-                                      const kdrt_build_options *options, kdrt_scene **out_scene,
-                                      kdrt_build_report *report)
+/* kdrt_scene_build(), and kdrt_scene_load() when file is not NULL (the mesh tree loaded from
+   it), with checked options. */
+static kdrt_result kdrt__scene_make(const kdrt_geometry *geometries, uint32_t count,
+                                    const kdrt__file *file, const kdrt_build_options *options,
+                                    kdrt_scene **out_scene, kdrt_build_report *report)
 {
-    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    const kdrt_build_options opt = *options;
     kdrt_scene *sc;
     kdrt_result r;
-
-    kdrt__report_init(report);
-    if (!out_scene) return KDRT_ERROR_NULL_ARGUMENT;
-    *out_scene = NULL;
-    if (!geometries && count) return KDRT_ERROR_NULL_ARGUMENT;
-    r = kdrt__check_options(&opt);
-    if (r != KDRT_SUCCESS) return r;
     sc = (kdrt_scene *)kdrt__alloc(&opt.allocator, sizeof *sc);
     if (!sc) return KDRT_ERROR_OUT_OF_MEMORY;
     memset(sc, 0, sizeof *sc);
     sc->options = opt;
+    sc->load = file;
     sc->top.bounds = sc->bounds = kdrt_aabb_empty();
     /* The scene is its first commit: every entry to come, then laid out and built. */
     r = kdrt__reserve(&opt.allocator, (void **)&sc->next, &sc->next_capacity, count,
@@ -6008,12 +7162,78 @@ KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t 
         sc->entries_changed = sc->meshes_changed = 1;
         r = kdrt__commit(sc, report);
     }
+    sc->load = NULL; /* later commits build */
     if (r != KDRT_SUCCESS) {
         kdrt_scene_free(sc);
         return r;
     }
     *out_scene = sc;
     return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_build(const kdrt_geometry *geometries, uint32_t count,
+                                      const kdrt_build_options *options, kdrt_scene **out_scene,
+                                      kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt_result r;
+    kdrt__report_init(report);
+    if (!out_scene) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_scene = NULL;
+    if (!geometries && count) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__check_options(&opt);
+    if (r != KDRT_SUCCESS) return r;
+    return kdrt__scene_make(geometries, count, NULL, &opt, out_scene, report);
+}
+
+KDRT_API kdrt_result kdrt_scene_load(const kdrt_geometry *geometries, uint32_t count,
+                                     const void *bytes, size_t size,
+                                     const kdrt_build_options *options, kdrt_scene **out_scene,
+                                     kdrt_build_report *report)
+{
+    kdrt_build_options opt = options ? *options : kdrt_default_build_options();
+    kdrt__file f;
+    kdrt_result r;
+    kdrt__report_init(report);
+    if (!out_scene) return KDRT_ERROR_NULL_ARGUMENT;
+    *out_scene = NULL;
+    if (!geometries && count) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__check_load_options(&opt);
+    if (r == KDRT_SUCCESS) r = kdrt__read_header(bytes, size, &f);
+    if (r != KDRT_SUCCESS) return r;
+    /* The file's shape, so that a commit that rebuilds the mesh tree makes one of its kind; the
+       caller's allocator, scheduler and kernel flags. */
+    opt.builder = f.options.builder, opt.quality = f.options.quality;
+    opt.intersector = f.options.intersector, opt.max_leaf_size = f.options.max_leaf_size;
+    opt.max_depth = f.options.max_depth;
+    opt.sah_traversal_cost = f.options.sah_traversal_cost;
+    opt.sah_intersection_cost = f.options.sah_intersection_cost;
+    opt.sah_empty_bonus = f.options.sah_empty_bonus;
+    opt.flags = (opt.flags & ~(uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES) | f.options.flags;
+    return kdrt__scene_make(geometries, count, &f, &opt, out_scene, report);
+}
+
+KDRT_API size_t kdrt_scene_saved_size(const kdrt_scene *scene)
+{
+    uint64_t count[KDRT__SECTIONS];
+    if (!scene) return 0;
+    kdrt__section_counts(scene->meshes, count);
+    return (size_t)kdrt__saved_bytes(count);
+}
+
+KDRT_API kdrt_result kdrt_scene_save_meshes(const kdrt_scene *scene, kdrt_write_fn write,
+                                            void *user)
+{
+    kdrt_build_options shape;
+    if (!scene) return KDRT_ERROR_NULL_ARGUMENT;
+    if (scene->meshes) return kdrt__save(scene->meshes, &scene->meshes->shape,
+                                         scene->meshes->depth_limit, write, user);
+    shape = scene->options;
+    shape.flags &= (uint32_t)KDRT_BUILD_SKIP_INVALID_TRIANGLES;
+    return kdrt__save(NULL, &shape, shape.max_depth ? (shape.max_depth < KDRT_MAX_DEPTH
+                                                           ? shape.max_depth : KDRT_MAX_DEPTH)
+                                                    : kdrt__default_depth(0),
+                      write, user);
 }
 
 KDRT_API kdrt_result kdrt_scene_commit(kdrt_scene *scene)

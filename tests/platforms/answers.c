@@ -3,9 +3,12 @@
    kernel, aarch64, i386 with SSE2, mingw under wine, wasm under node).
 
      answers FILE            check every answer in FILE with every kernel this build has, under
-                             both builders and both intersectors; exit 1 on any difference
-     answers --write FILE    write FILE from this build's scalar kernel (only after a change
-                             that is meant to change answers, and say why in the commit)
+                             both builders and both intersectors; then load the saved trees
+                             beside FILE (answers.kdrt) and check them as well (below); exit 1
+                             on any difference
+     answers --write FILE    write FILE from this build's scalar kernel, and answers.kdrt beside
+                             it from the trees that answered (only after a change that is meant
+                             to change answers or the saved format, and say why in the commit)
 
    The mesh is made here from integers scaled by powers of two (no libm: the C libraries of the
    targets round sin and cos differently), so every target has the same floats. The rays are in
@@ -18,6 +21,15 @@
    can meet both triangles of it, or neither, and which is tested depends on the cells; the
    watertight test's cannot). The batch calls must give the single calls' answers. Start cells are left out: they name nodes,
    and trees may differ where libc's qsort orders ties differently; no answer depends on them.
+
+   Saved trees, made on x86-64 and loaded everywhere: answers.kdrt holds, back to back as
+   kdrt_tree_save() and kdrt_scene_save_meshes() wrote them when FILE was written, the watertight
+   SAH tree, the fast median and fast SAH trees and the scene's mesh tree that gave FILE's
+   answers. Each target loads them with kdrt_tree_load() and kdrt_scene_load() against the mesh
+   made here, copied and in place (64-byte aligned), with every kernel it has; the loaded trees
+   and the scene over them must give every answer of FILE (the fast trees' answers too, which are
+   the saved trees' own), and each must save again to its bytes in answers.kdrt. A file that does
+   not load (damaged, another format version, a mesh whose floats differ here) fails the check.
    Strict C99, the header only. */
 #define KDRT_IMPLEMENTATION
 #include "kdrt.h"
@@ -258,6 +270,185 @@ static uint32_t batch_differences(const answerer *q, const kdrt_ray *rays,
     return bad;
 }
 
+/* The saved trees, in answers.kdrt's order: the answerer's three trees and its scene's. */
+#define SAVED_TREES 4
+static const char *const saved_names[SAVED_TREES] = {"watertight sah tree", "fast median tree",
+                                                     "fast sah tree", "scene's mesh tree"};
+
+typedef struct buffer {
+    unsigned char *data;
+    size_t size, capacity;
+} buffer;
+
+static int buffer_write(void *user, const void *bytes, size_t size)
+{
+    buffer *out = (buffer *)user;
+    if (size > out->capacity - out->size) return 0;
+    memcpy(out->data + out->size, bytes, size);
+    out->size += size;
+    return 1;
+}
+
+/* Saved tree which of q (saved_names' order) into out, malloc'd; 0 on failure. */
+static int save_one(const answerer *q, int which, buffer *out)
+{
+    const kdrt_tree *tree = which == 0 ? q->watertight : which < 3 ? q->fast[which - 1] : NULL;
+    const size_t size = tree ? kdrt_tree_saved_size(tree) : kdrt_scene_saved_size(q->scene);
+    kdrt_result r;
+    out->size = 0, out->capacity = size;
+    out->data = (unsigned char *)malloc(size ? size : 1u);
+    if (!out->data) return 0;
+    r = tree ? kdrt_tree_save(tree, buffer_write, out) : kdrt_scene_save_meshes(q->scene, buffer_write, out);
+    if (r != KDRT_SUCCESS || out->size != size) {
+        fprintf(stderr, "answers: saving the %s failed: %s\n", saved_names[which], kdrt_result_string(r));
+        free(out->data), out->data = NULL;
+        return 0;
+    }
+    return 1;
+}
+
+/* path with its file name (after the last slash or backslash) replaced by name, malloc'd. */
+static char *beside(const char *path, const char *name)
+{
+    size_t dir = strlen(path);
+    char *out;
+    while (dir > 0 && path[dir - 1] != '/' && path[dir - 1] != '\\') --dir;
+    out = (char *)malloc(dir + strlen(name) + 1);
+    if (out) memcpy(out, path, dir), strcpy(out + dir, name);
+    return out;
+}
+
+/* The whole file at path, malloc'd; 0 when it cannot be read. */
+static int read_all(const char *path, buffer *out)
+{
+    FILE *f = fopen(path, "rb");
+    size_t got = 0;
+    memset(out, 0, sizeof *out);
+    if (!f) return 0;
+    do {
+        if (out->size == out->capacity) {
+            unsigned char *grown = (unsigned char *)realloc(out->data, out->capacity + 65536u);
+            if (!grown) break;
+            out->data = grown, out->capacity += 65536u;
+        }
+        got = fread(out->data + out->size, 1, out->capacity - out->size, f);
+        out->size += got;
+    } while (got > 0);
+    if (ferror(f) || !feof(f)) {
+        fclose(f), free(out->data);
+        memset(out, 0, sizeof *out);
+        return 0;
+    }
+    fclose(f);
+    return 1;
+}
+
+/* Splits answers.kdrt into its SAVED_TREES saved trees by the file size each header records
+   (bytes 24 to 31, little-endian); 0, with a message, unless they fill it exactly. */
+static int split_saved(const char *path, const buffer *file, buffer saved[SAVED_TREES])
+{
+    size_t at = 0;
+    int i, b;
+    for (i = 0; i < SAVED_TREES; ++i) {
+        uint64_t size = 0;
+        if (file->size - at < 32u) {
+            fprintf(stderr, "answers: %s ends before its %s (%lu bytes)\n", path, saved_names[i],
+                    (unsigned long)file->size);
+            return 0;
+        }
+        for (b = 7; b >= 0; --b) size = size << 8 | file->data[at + 24u + (unsigned)b];
+        if (size > file->size - at) {
+            fprintf(stderr, "answers: %s: its %s records %lu bytes, more than the file has left\n", path,
+                    saved_names[i], (unsigned long)size);
+            return 0;
+        }
+        saved[i].data = file->data + at, saved[i].size = saved[i].capacity = (size_t)size;
+        at += (size_t)size;
+    }
+    if (at != file->size) {
+        fprintf(stderr, "answers: %s holds %lu bytes after its %d saved trees\n", path,
+                (unsigned long)(file->size - at), SAVED_TREES);
+        return 0;
+    }
+    return 1;
+}
+
+/* The answerer of the saved trees: each loaded (the instanced tree is the watertight tree
+   loaded again, as it was built alike) with these flags, and the scene with its mesh tree
+   loaded. 0, with a message naming the tree, when a load fails. */
+static int answerer_load(answerer *q, const kdrt_triangles *mesh, const buffer saved[SAVED_TREES],
+                         uint32_t flags, const char *path)
+{
+    kdrt_build_options o = kdrt_default_build_options();
+    kdrt_tree **trees[4];
+    kdrt_geometry g[3];
+    kdrt_result r = KDRT_SUCCESS;
+    int i, which = 0;
+    memset(q, 0, sizeof *q);
+    o.flags = flags;
+    trees[0] = &q->watertight, trees[1] = &q->fast[0], trees[2] = &q->fast[1], trees[3] = &q->instanced;
+    for (i = 0; i < 4 && r == KDRT_SUCCESS; ++i) {
+        which = i < 3 ? i : 0;
+        r = kdrt_tree_load(saved[which].data, saved[which].size, mesh, &o, trees[i], NULL);
+    }
+    if (r == KDRT_SUCCESS) {
+        which = 3;
+        g[0] = kdrt_mesh_geometry(7, mesh);
+        for (i = 0; i < 2; ++i) g[1 + i] = kdrt_instance_geometry(20u + (uint32_t)i, q->instanced, instance_transforms[i]);
+        r = kdrt_scene_load(g, 3, saved[3].data, saved[3].size, &o, &q->scene, NULL);
+    }
+    if (r != KDRT_SUCCESS) {
+        fprintf(stderr, "answers: %s: the %s does not load: %s\n", path, saved_names[which], kdrt_result_string(r));
+        answerer_free(q);
+        return 0;
+    }
+    return 1;
+}
+
+/* How many of q's trees save to bytes other than saved's (a failed save counts). */
+static int saved_differences(const answerer *q, const buffer saved[SAVED_TREES])
+{
+    int i, bad = 0;
+    for (i = 0; i < SAVED_TREES; ++i) {
+        buffer again;
+        if (!save_one(q, i, &again)) {
+            ++bad;
+            continue;
+        }
+        if (again.size != saved[i].size || memcmp(again.data, saved[i].data, again.size) != 0) {
+            fprintf(stderr, "answers: the loaded %s saves to other bytes than the file's "
+                            "(%lu bytes, the file's %lu)\n",
+                    saved_names[i], (unsigned long)again.size, (unsigned long)saved[i].size);
+            ++bad;
+        }
+        free(again.data);
+    }
+    return bad;
+}
+
+/* Every answer of q against expected, differences printed (MAX_REPORTED of them); returns the
+   rays that differ, and the batch answers that differ in *batch_bad. */
+static uint32_t differences(const answerer *q, const kdrt_ray *rays, uint32_t (*expected)[ANSWER_WORDS],
+                            uint32_t count, uint32_t *batch_bad)
+{
+    uint32_t n, i, bad = 0, reported = 0;
+    for (n = 0; n < count; ++n) {
+        uint32_t got[ANSWER_WORDS];
+        int differs = 0;
+        answer(q, &rays[n], got);
+        for (i = 0; i < ANSWER_WORDS; ++i) {
+            if (got[i] == expected[n][i]) continue;
+            differs = 1;
+            if (reported++ < MAX_REPORTED)
+                fprintf(stderr, "answers: ray %u, %s: got %08x, the file has %08x\n", n,
+                        column_names[i], got[i], expected[n][i]);
+        }
+        bad += (uint32_t)differs;
+    }
+    *batch_bad = batch_differences(q, rays, expected, count);
+    return bad;
+}
+
 /* One line: 8 words of ray, '|', ANSWER_WORDS words of answers. */
 static int parse_line(const char *line, uint32_t ray_words[RAY_WORDS], uint32_t answers[ANSWER_WORDS])
 {
@@ -285,11 +476,33 @@ static void ray_of_words(const uint32_t w[RAY_WORDS], kdrt_ray *ray)
     ray->tmin = float_of(w[3]), ray->tmax = float_of(w[7]);
 }
 
+/* answers.kdrt beside path: q's saved trees, back to back. */
+static int write_saved(const char *path, const answerer *q)
+{
+    char *saved_path = beside(path, "answers.kdrt");
+    FILE *f = saved_path ? fopen(saved_path, "wb") : NULL;
+    size_t total = 0;
+    int i, ok = f != NULL;
+    for (i = 0; i < SAVED_TREES && ok; ++i) {
+        buffer b;
+        ok = save_one(q, i, &b);
+        if (ok) ok = fwrite(b.data, 1, b.size, f) == b.size, total += b.size, free(b.data);
+    }
+    if (f && fclose(f) != 0) ok = 0;
+    if (ok)
+        printf("answers: wrote %d saved trees (%lu bytes) to %s\n", SAVED_TREES, (unsigned long)total,
+               saved_path);
+    else fprintf(stderr, "answers: cannot write %s\n", saved_path ? saved_path : "answers.kdrt");
+    free(saved_path);
+    return ok;
+}
+
 static int write_file(const char *path, const kdrt_triangles *mesh, const float *v)
 {
     answerer q;
     FILE *f;
     uint32_t n, i, a[ANSWER_WORDS];
+    int saved;
     if (!answerer_build(&q, mesh, KDRT_BUILDER_SAH, KDRT_BUILD_SCALAR_KERNEL)) {
         fprintf(stderr, "answers: the build failed\n");
         return 1;
@@ -311,13 +524,15 @@ static int write_file(const char *path, const kdrt_triangles *mesh, const float 
         for (i = 0; i < ANSWER_WORDS; ++i) fprintf(f, " %x", a[i]);
         fprintf(f, "\n");
     }
-    answerer_free(&q);
     if (fclose(f) != 0) {
         fprintf(stderr, "answers: cannot write %s\n", path);
+        answerer_free(&q);
         return 1;
     }
     printf("answers: wrote %d rays to %s\n", RAY_COUNT, path);
-    return 0;
+    saved = write_saved(path, &q);
+    answerer_free(&q);
+    return saved ? 0 : 1;
 }
 
 int main(int argc, char **argv)
@@ -332,8 +547,10 @@ int main(int argc, char **argv)
     kdrt_kernel seen[3];
     char line[1024];
     uint32_t count = 0, passed = 0, failed = 0;
-    int k, b, seen_count = 0;
+    int k, b, seen_count = 0, in_place;
     FILE *f;
+    char *saved_path;
+    buffer saved_file, saved[SAVED_TREES];
 
     make_mesh(vertices, indices);
     memset(&mesh, 0, sizeof mesh);
@@ -341,7 +558,7 @@ int main(int argc, char **argv)
     mesh.indices = indices, mesh.triangle_count = TRIANGLE_COUNT;
     if (argc == 3 && strcmp(argv[1], "--write") == 0) return write_file(argv[2], &mesh, vertices);
     if (argc != 2 || argv[1][0] == '-') {
-        fprintf(stderr, "usage: answers FILE | answers --write FILE\n");
+        fprintf(stderr, "usage: answers FILE | answers --write FILE  (the saved trees: answers.kdrt beside FILE)\n");
         return 2;
     }
 
@@ -372,7 +589,7 @@ int main(int argc, char **argv)
         for (b = 0; b < 2; ++b) {
             answerer q;
             kdrt_tree_stats stats;
-            uint32_t n, bad = 0, reported = 0, i;
+            uint32_t n, bad;
             int s, repeated = 0;
             if (!answerer_build(&q, &mesh, builders[b], kernel_flags[k])) {
                 fprintf(stderr, "answers: the build failed\n");
@@ -385,26 +602,87 @@ int main(int argc, char **argv)
                 break;
             }
             if (b == 0) seen[seen_count++] = stats.kernel;
-            for (n = 0; n < count; ++n) {
-                uint32_t got[ANSWER_WORDS];
-                int differs = 0;
-                answer(&q, &rays[n], got);
-                for (i = 0; i < ANSWER_WORDS; ++i) {
-                    if (got[i] == expected[n][i]) continue;
-                    differs = 1;
-                    if (reported++ < MAX_REPORTED)
-                        fprintf(stderr, "answers: ray %u, %s: got %08x, the file has %08x\n", n,
-                                column_names[i], got[i], expected[n][i]);
-                }
-                bad += (uint32_t)differs;
-            }
-            n = batch_differences(&q, rays, expected, count);
+            bad = differences(&q, rays, expected, count, &n);
             printf("answers: kernel %s, builder %s: %u rays, %u differ from the file, %u batch answers differ\n",
                    kdrt_kernel_string(stats.kernel), b ? "sah" : "median", count, bad, n);
             if (bad || n) ++failed;
             else ++passed;
             answerer_free(&q);
         }
+
+    /* The trees saved on x86-64 (answers.kdrt), loaded copied and in place with every kernel
+       this build has (seen above): the same answers, and saved again, the same bytes. */
+    saved_path = beside(argv[1], "answers.kdrt");
+    if (!saved_path || !read_all(saved_path, &saved_file)) {
+        fprintf(stderr, "answers: cannot read the saved trees, %s\n",
+                saved_path ? saved_path : "answers.kdrt");
+        return 1;
+    }
+    if (!split_saved(saved_path, &saved_file, saved)) return 1;
+    for (in_place = 0; in_place < 2; ++in_place) {
+        buffer aligned[SAVED_TREES];
+        unsigned char *copies = NULL;
+        kdrt_kernel done[3];
+        int done_count = 0;
+        if (in_place) { /* each tree at a 64-byte boundary, as KDRT_LOAD_IN_PLACE uses it */
+            size_t at = 0;
+            int i;
+            copies = (unsigned char *)malloc(saved_file.size + 64u * SAVED_TREES);
+            if (!copies) {
+                fprintf(stderr, "answers: out of memory\n");
+                return 1;
+            }
+            for (i = 0; i < SAVED_TREES; ++i) {
+                at += (64u - (size_t)((uintptr_t)(copies + at) % 64u)) % 64u;
+                aligned[i] = saved[i], aligned[i].data = copies + at;
+                memcpy(aligned[i].data, saved[i].data, saved[i].size);
+                at += saved[i].size;
+            }
+        } else {
+            memcpy(aligned, saved, sizeof aligned);
+        }
+        for (k = 0; k < 3; ++k) {
+            answerer q;
+            kdrt_tree_stats stats;
+            uint32_t batch_bad, bad;
+            int s, repeated = 0, other_bytes, owns_wrong;
+            const uint32_t flags = kernel_flags[k] | (in_place ? (uint32_t)KDRT_LOAD_IN_PLACE : 0u);
+            if (!answerer_load(&q, &mesh, aligned, flags, saved_path)) {
+                free(copies), free(saved_file.data), free(saved_path);
+                return 1;
+            }
+            kdrt_tree_get_stats(q.watertight, &stats);
+            for (s = 0; s < done_count; ++s) repeated |= done[s] == stats.kernel;
+            if (repeated) {
+                answerer_free(&q);
+                continue;
+            }
+            done[done_count++] = stats.kernel;
+            /* In place, the tree owns its struct alone (every target here is little-endian);
+               copied, about the file's size (less its header on 32-bit targets). */
+            owns_wrong = in_place != (stats.bytes < aligned[0].size / 2u);
+            if (owns_wrong)
+                fprintf(stderr, "answers: the watertight sah tree loaded %s owns %lu bytes, its file %lu\n",
+                        in_place ? "in place" : "copied", (unsigned long)stats.bytes,
+                        (unsigned long)aligned[0].size);
+            bad = differences(&q, rays, expected, count, &batch_bad);
+            other_bytes = saved_differences(&q, aligned);
+            printf("answers: saved trees %s, kernel %s: %u rays, %u differ from the file, "
+                   "%u batch answers differ, %d of %d trees save to other bytes\n",
+                   in_place ? "in place" : "copied", kdrt_kernel_string(stats.kernel), count, bad,
+                   batch_bad, other_bytes, SAVED_TREES);
+            if (bad || batch_bad || other_bytes || owns_wrong) ++failed;
+            else ++passed;
+            answerer_free(&q);
+        }
+        if (done_count != seen_count) {
+            fprintf(stderr, "answers: the saved trees %s ran %d kernels, the built trees %d\n",
+                    in_place ? "loaded in place" : "copied", done_count, seen_count);
+            ++failed;
+        }
+        free(copies);
+    }
+    free(saved_file.data), free(saved_path);
     printf("%u passed, %u failed\n", passed, failed);
     return failed ? 1 : 0;
 }

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# The stored answers (answers.txt) on this x86-64 machine, in the builds that used to change
-# their last bits: GCC's GNU modes and Clang with FMA (-march=native, which contract a * b + c
-# unless kdrt.h stops them), C++, -O0, and i386 with SSE2. Each build checks every kernel the
-# CPU has (answers.c). Run from anywhere; needs gcc, g++, clang, clang++ and gcc -m32
-# (tools/setup.sh --platforms).
+# The stored answers (answers.txt) and saved trees (answers.kdrt) on this x86-64 machine, in the
+# builds that used to change their last bits: GCC's GNU modes and Clang with FMA (-march=native,
+# which contract a * b + c unless kdrt.h stops them), C++, -O0, and i386 with SSE2. Each build
+# checks every kernel the CPU has (answers.c). Run from anywhere; needs gcc, g++, clang, clang++
+# and gcc -m32 (tools/setup.sh --platforms).
 #   bash tests/platforms/native.sh
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The platform checks, each a script of this folder: the stored answers (answers.txt) on this
-# machine's builds, the MSVC object code, mingw-w64 under wine, aarch64 under qemu-user and
-# WebAssembly under node. Needs the cross toolchains: bash tools/setup.sh --platforms.
+# The platform checks, each a script of this folder: the stored answers (answers.txt) and the
+# trees saved on x86-64 (answers.kdrt; answers.c says what is checked) on this machine's builds,
+# the MSVC object code, mingw-w64 under wine, aarch64 under qemu-user and WebAssembly under node.
+# Needs the cross toolchains: bash tools/setup.sh --platforms.
 #   bash tests/platforms/run.sh [NAME...]    (default: all; e.g. run.sh native wasm)
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"

@@ -2,10 +2,11 @@
 # The header compiled to WebAssembly with emscripten and run under node: the smoke tests
 # (tests/smoke_c99.c, smoke_cpp11.cpp, smoke_stats.c), the header-only examples
 # (examples/minimal.c, instances.cpp, and engine.cpp, whose std::threads run as emscripten
-# pthreads in node's workers), the stored answers' checker (tests/platforms/answers.c) where it
-# exists, and kernel_speed.c, which traces the same 200,000 rays with the SIMD128 kernel and the
-# scalar kernel and compares their answers bit for bit; each twice, built without and with
-# -msimd128 (the SIMD128 kernel), at -O2 with the strict warnings.
+# pthreads in node's workers), the stored answers' checker (tests/platforms/answers.c, which
+# also loads the trees saved on x86-64, answers.kdrt) where it exists, and kernel_speed.c, which
+# traces the same 200,000 rays with the SIMD128 kernel and the scalar kernel and compares their
+# answers bit for bit; each twice, built without and with -msimd128 (the SIMD128 kernel), at -O2
+# with the strict warnings.
 #   bash tests/platforms/wasm.sh [WORK_DIR]      (default build-wasm)
 # Needs emcc (emscripten 3.1.6 here) and node. Under a minute on 2 cores.
 set -euo pipefail
@@ -38,7 +39,7 @@ build_one() { # PROGRAM FLAVOUR (scalar or simd128)
     instances) em++ -std=c++17 "${strict[@]}" "${simd[@]}" "${link[@]}" examples/instances.cpp -o "$out" ;;
     engine) em++ -std=c++17 "${strict[@]}" "${simd[@]}" "${threads[@]}" examples/engine.cpp -o "$out" ;;
     kernel_speed) emcc -std=c99 "${strict[@]}" "${conversions[@]}" "${simd[@]}" "${link[@]}" tests/platforms/kernel_speed.c -o "$out" ;;
-    # NODERAWFS: it reads answers.txt from the host's file system
+    # NODERAWFS: it reads answers.txt and answers.kdrt from the host's file system
     answers) emcc -std=c99 "${strict[@]}" "${simd[@]}" "${link[@]}" -sNODERAWFS=1 tests/platforms/answers.c -o "$out" ;;
   esac
 }
@@ -61,7 +62,8 @@ for flavour in scalar simd128; do
       { cat "$work/$program-$flavour.out"; echo "wasm.sh: $program ($flavour) failed" >&2; exit 1; }
     echo "$program ($flavour): passed"
   done
-  # with every kernel the build has: scalar, and in the -msimd128 build SIMD128 too
+  # with every kernel the build has: scalar, and in the -msimd128 build SIMD128 too; the built
+  # trees, then the saved ones (answers.kdrt)
   if [[ -f tests/platforms/answers.c ]]; then node "$work/answers-$flavour.js" tests/platforms/answers.txt; fi
 done
 

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # kdrt on Windows, run under wine: the smoke tests, the examples that need only the header, the
-# stored answers (answers.c) and kernel_report.c, built by mingw-w64 GCC; kernel_report by clang
-# for mingw-w64 too; and kernel_report linked with kdrt's implementation compiled by clang for
-# MSVC's target (as clang-cl compiles it, and in cl.exe's macro set, as msvc.sh compiles them),
-# which runs its cpuid check. kernel_report checks that a default tree runs the AVX-512 or AVX2
-# kernel where this CPU has it (wine passes the CPU's features through), an AVX2-flagged one
-# AVX2, a scalar-flagged one the scalar kernel, and that all answer alike bit for bit.
+# stored answers and saved trees (answers.c) and kernel_report.c, built by mingw-w64 GCC;
+# kernel_report by clang for mingw-w64 too; and kernel_report linked with kdrt's implementation
+# compiled by clang for MSVC's target (as clang-cl compiles it, and in cl.exe's macro set, as
+# msvc.sh compiles them), which runs its cpuid check. kernel_report checks that a default tree
+# runs the AVX-512 or AVX2 kernel where this CPU has it (wine passes the CPU's features through),
+# an AVX2-flagged one AVX2, a scalar-flagged one the scalar kernel, and that all answer alike bit
+# for bit.
 #   tests/platforms/windows.sh
 # Compiled as CMake compiles them (the Release build's -O3 -DNDEBUG, tests/CMakeLists.txt's and
 # examples/CMakeLists.txt's warnings, as errors; kernel_report at -O2 with assertions on),
@@ -77,8 +78,9 @@ compile engine.exe "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include
     "$root/examples/engine.cpp" -static -pthread
 compile instances.exe "$cxx" -std=c++17 "${release[@]}" "${warnings[@]}" "${include[@]}" \
     "$root/examples/instances.cpp" -static
-# The stored answers (answers.c, answers.txt: every kernel this CPU has, bit for bit), built as
-# native.sh's strict C99 build is.
+# The stored answers (answers.c, answers.txt: every kernel this CPU has, bit for bit) and the
+# trees saved on Linux (answers.kdrt, loaded and checked by the same run), built as native.sh's
+# strict C99 build is.
 compile answers.exe "$cc" -std=c99 -O2 "${warnings[@]}" "${include[@]}" "$root/tests/platforms/answers.c" -static
 # kernel_report with kdrt's assertions on (no NDEBUG), at the strict warnings.
 compile kernel_report.exe "$cc" -std=c99 -O2 "${warnings[@]}" "${strict[@]}" "${include[@]}" \
@@ -140,9 +142,9 @@ fi
 echo "wine prefix ready at $((SECONDS - start)) s"
 
 failures=0
-# run NAME EXPECTED... : runs NAME.exe under wine (answers.exe with answers.txt, as its header
-# comment says); it must exit 0 and its output (CRLF made LF) must hold each EXPECTED line (a
-# grep -E pattern).
+# run NAME EXPECTED... : runs NAME.exe under wine (answers.exe with answers.txt, answers.kdrt
+# beside it, as its header comment says); it must exit 0 and its output (CRLF made LF) must hold
+# each EXPECTED line (a grep -E pattern).
 run() {
     local name=$1 status=0 pattern arguments=()
     shift
@@ -183,9 +185,12 @@ if has avx2; then
     if has avx512f; then default_kernel=avx512; fi
 fi
 echo "this CPU: the default tree should run the $default_kernel kernel"
-cp "$root/tests/platforms/answers.txt" "$work/answers.txt"
+cp "$root/tests/platforms/answers.txt" "$root/tests/platforms/answers.kdrt" "$work/"
+saved_ok="640 rays, 0 differ from the file, 0 batch answers differ, 0 of 4 trees save to other bytes"
 run answers "^answers: kernel $default_kernel, builder sah: 640 rays, 0 differ from the file, 0 batch answers differ$" \
     "^answers: kernel scalar, builder sah: 640 rays, 0 differ from the file, 0 batch answers differ$" \
+    "^answers: saved trees copied, kernel $default_kernel: $saved_ok$" \
+    "^answers: saved trees in place, kernel scalar: $saved_ok$" \
     "^[1-9][0-9]* passed, 0 failed$"
 echo "+ kernel_report_native"
 if ! (cd "$work" && ./kernel_report_native) >"$work/native.txt"; then
