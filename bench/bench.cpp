@@ -240,6 +240,7 @@ std::string usage() {
            "       kdrt-bench --accuracy [options] [MESH_OR_FOLDER ...]\n"
            "       kdrt-bench --scene merged,field [options] [MESH ...]\n"
            "       kdrt-bench --scene frames [options] [MESH ...]\n"
+           "       kdrt-bench --save-load [--repeat N] [--subdivide K] [MESH_OR_FOLDER ...]\n"
            "\n"
            "Builds kdrt's default kd-tree (SAH builder, default quality, max leaf size 4) over each\n"
            "mesh and traces the benchmark frame: the mesh scaled to fill the view in front of a\n"
@@ -323,6 +324,7 @@ std::string usage() {
            "  --intersector LIST  watertight (the default), fast (Moeller-Trumbore), or both\n"
            "                      separated by a comma: a row for each, named in the last column\n"
            "  --accuracy          speed beside error counts for each intersector (see below)\n"
+           "  --save-load         saved trees: build, save and load timed side by side (see below)\n"
            "  --scene LIST        merged, field or both: kdrt_scene against one tree; or frames:\n"
            "                      a game's frames against Embree (see below)\n"
            "  --instances N       with --scene field: instances in the field (default 1000); with\n"
@@ -390,6 +392,18 @@ std::string usage() {
            "rebuild, primary, shadow, frame), the medians over the frames, and a summary\n"
            "(bench/README.md, \"Frames\").\n"
            "\n"
+           "--save-load times saved trees (kdrt.h, SAVED TREES) on each mesh, one thread: the\n"
+           "SAH build at FAST and at the default quality, then for each tree the save into\n"
+           "memory, the load (the sections copied), the load in place (KDRT_LOAD_IN_PLACE from a\n"
+           "64-byte aligned buffer) and the mesh fingerprint alone (a load over the mesh with one\n"
+           "index changed, refused). --repeat N (default 7) rounds, each timing every step in\n"
+           "turn, the fastest of each kept; each loaded tree must save again to the file's bytes.\n"
+           "It writes Mesh;Triangles;Quality;BuildMs;SaveMs;LoadMs;LoadInPlaceMs;FingerprintMs;\n"
+           "TreeBytes;SavedBytes;FastBuildOverLoad;FastBuildOverLoadInPlace, a row per mesh and\n"
+           "quality, and the same as a table (on standard output beside -o FILE, else on standard\n"
+           "error). Only --repeat, --subdivide, -o and --quiet apply (bench/README.md, \"Saved\n"
+           "trees\").\n"
+           "\n"
            "The mesh folder: " + common::mesh_dir_help() + ".\n";
 }
 
@@ -401,8 +415,12 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     bool hard_rays_given = false, repeat_given = false, size_given = false;
     bool frames_given = false, spacing_given = false, threads_given = false;
     bool batch_given = false, batch_size_given = false, tile_given = false;
+    std::string not_save_load_option;  // the last option that --save-load has no use for
     for (int i = 1; i < argc; ++i) {
         std::string arg = argv[i];
+        if (!arg.empty() && arg[0] == '-' && arg != "--save-load" && arg != "--repeat" && arg != "--subdivide" &&
+            arg != "-o" && arg != "--output" && arg != "-q" && arg != "--quiet" && arg != "--help" && arg != "-h")
+            not_save_load_option = arg;
         auto value = [&](std::string &v) {
             if (i + 1 >= argc) {
                 error = arg + " needs a value";
@@ -431,6 +449,8 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.help = true;
         } else if (arg == "--accuracy") {
             out.accuracy = true;
+        } else if (arg == "--save-load") {
+            out.save_load = true;
         } else if (arg == "--sweep") {
             out.sweep = true;
         } else if (arg == "--quiet" || arg == "-q") {
@@ -637,6 +657,15 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         } else {
             out.inputs.push_back(arg);
         }
+    }
+    if (out.save_load) {
+        if (!not_save_load_option.empty()) {
+            error = not_save_load_option + " does not apply to --save-load (it takes --repeat, --subdivide, -o and "
+                                           "--quiet: each tree is kdrt's default but for the quality, one thread)";
+            return false;
+        }
+        if (!repeat_given) out.repeat = 7;
+        return true;
     }
     // What the leaf-size CSV builds when not told: kdrt's default tree, or with --sweep the
     // original's run.

@@ -71,6 +71,9 @@ struct Options {
     // Ray/triangle tests to run; empty: watertight in the leaf-size CSV, both under --accuracy.
     std::vector<kdrt_intersector> intersectors;
     bool accuracy = false;             // --accuracy: error counts per intersector, not leaf sizes
+    // --save-load: build (FAST and the default quality), save and load (copied, in place) timed
+    // side by side on each mesh (saved_trees.hpp), not leaf sizes
+    bool save_load = false;
     size_t hard_rays = 20000;          // --accuracy: rays per watertight and per hard-case set
     // --scene: "merged" and/or "field", in the order given (scenes.hpp), or "frames" alone
     // (frames.hpp); empty: not the scene mode.

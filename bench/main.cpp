@@ -8,6 +8,7 @@
 #include "bench.hpp"
 #include "embree_peer.hpp"
 #include "frames.hpp"
+#include "saved_trees.hpp"
 #include "scenes.hpp"
 #include "oracle/hard_cases.hpp"
 #include "oracle/reference.hpp"
@@ -823,6 +824,48 @@ int run_frames(const kb::Options &opt, Csv &csv, Progress &progress) {
     return failures ? 1 : 0;
 }
 
+// --save-load (bench/README.md, "Saved trees"): every mesh measured by kb::measure_save_load, its
+// two rows written as soon as it is done, and the table of them all at the end.
+int run_save_load(const kb::Options &opt, const std::vector<Input> &inputs, Csv &csv, Progress &progress, int failures) {
+    std::string error, write_error;
+    if (!csv.line(kb::save_load_csv_header(), write_error)) {
+        progress.note("kdrt-bench: " + write_error);
+        return 1;
+    }
+    progress.total = inputs.size();
+    std::vector<kb::SaveLoadRow> rows;
+    for (const Input &in : inputs) {
+        progress.step(in.label + ": " + std::to_string(in.mesh.triangle_count()) + " triangles: FAST and default (MEDIUM) builds, saves, "
+                      "loads copied and in place, " + std::to_string(opt.repeat) + (opt.repeat == 1 ? " round" : " rounds"));
+        const size_t first = rows.size();
+        if (!kb::measure_save_load(in.mesh, in.label, opt.repeat, rows, error)) {
+            progress.note("kdrt-bench: " + error);
+            ++failures;
+            continue;
+        }
+        for (size_t i = first; i < rows.size(); ++i)
+            if (!csv.line(kb::save_load_csv_row(rows[i]), write_error)) {
+                progress.note("kdrt-bench: " + write_error);
+                return 1;
+            }
+    }
+    if (!rows.empty()) {
+        const std::string table = kb::save_load_table(rows);
+        // Beside a CSV file on standard output; with the CSV there, on standard error.
+        if (!opt.output.empty()) {
+            if (!common::write_flushed(stdout, table, "standard output", error)) progress.note("kdrt-bench: " + error), ++failures;
+        } else {
+            std::fprintf(stderr, "\n%s", table.c_str());
+        }
+    }
+    if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) failed; see above");
+    if (!csv.finish(error)) {
+        progress.note("kdrt-bench: " + error);
+        return 1;
+    }
+    return failures ? 1 : 0;
+}
+
 // One trace's answers: hits (nearest hit) or, for shadow rays, occluded; a ray each.
 struct Answers {
     std::vector<kdrt_hit> hits;
@@ -905,7 +948,7 @@ int run(int argc, char **argv) {
     }
     Progress progress;
     progress.quiet = opt.quiet;
-    if (!opt.compare_chosen && !opt.accuracy) {  // Embree beside kdrt where this kdrt-bench has it
+    if (!opt.compare_chosen && !opt.accuracy && !opt.save_load) {  // Embree beside kdrt where this kdrt-bench has it
         opt.compare_embree = kb::embree_available();
         if (!opt.compare_embree)
             progress.status("built without Embree: kdrt's rows only (install libembree-dev and configure again "
@@ -972,6 +1015,7 @@ int run(int argc, char **argv) {
     for (Input &in : inputs)
         if (opt.subdivide) in.mesh = common::subdivided(in.mesh, opt.subdivide), in.label += "_SUB" + std::to_string(opt.subdivide);
 
+    if (opt.save_load) return run_save_load(opt, inputs, csv, progress, failures);
     const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
     if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, csv, progress, failures);
 

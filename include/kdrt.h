@@ -475,18 +475,19 @@
      on (x86-64 and i386, aarch64 under qemu, wasm under node, mingw-w64 under wine), copied and
      in place with each kernel there, and checks that they give its stored answers bit for bit
      and save again to the same bytes.
-     Cost, one thread, on an AMD EPYC 2-core VM with AVX2 (GCC 12 -O2; bench/save_load.cpp, the
-     fastest of 7 runs of each, its command at its top), against a FAST build of the same mesh:
+     Cost, one thread, on an AMD EPYC 2-core VM with AVX2 (GCC 12, Release build; kdrt-bench
+     --save-load, the fastest of 7 rounds, its commands in bench/README.md, "Saved trees", with
+     other builds running beside it), against a FAST build of the same mesh:
          mesh (triangles)          FAST build   load (x faster)  in place (x)   hash   save  file
-         stanford-bunny (69,451)     36.6 ms    0.85 ms (43)     0.70 ms (52)   0.15   0.54  5.8 MB
-         ogre (124,008)              61.9 ms    2.46 ms (25)     1.45 ms (43)   0.18   1.63  11.6 MB
-         bunny subdivided twice     786 ms     114 ms   (6.9)   29.2 ms  (27)   2.65   31.0  93.4 MB
+         stanford-bunny (69,451)     31.8 ms    1.19 ms (27)     0.83 ms (38)   0.12   1.33  5.8 MB
+         ogre (124,008)              64.9 ms    2.84 ms (23)     1.72 ms (38)   0.23   2.90  11.6 MB
+         bunny subdivided twice     601 ms     67.1 ms  (9.0)   12.8 ms  (47)   1.91   21.6  93.4 MB
            (1,111,216)
      "hash" is the mesh fingerprint, XXH64 over the positions and indices (1.2 MB for the bunny,
-     20 MB for the subdivided one: 7 to 8 GB/s), which every load computes: a fifth of the small
-     loads, 2% of the large one. A copying load of a large tree is bound by the fresh memory it
-     writes, which this VM gives at about 1.3 ms a megabyte (a page fault every 4 KB): 93 MB of
-     blocks cost it most of its 114 ms, which a load in place does not spend.
+     20 MB for the subdivided one), which every load computes: a tenth of the small loads, 3% of
+     the large one. A copying load of a large tree is bound by the fresh memory it writes (a page
+     fault every 4 KB): 93 MB of blocks cost it most of its 67 ms, which a load in place does not
+     spend.
      The format, version 1 (KDRT_SAVED_TREE_VERSION): little-endian, uint32 and float (IEEE
      binary32 bits) words, uint64 as two words, low first. A 256-byte header, then the sections
      in this order, each its records back to back with nothing between:

@@ -1,9 +1,10 @@
 // kdrt-bench's pieces: options, the original's leaf-size stop rule, the CSV format, the scene,
 // the reference comparison behind the Mismatches column, the diffuse rays' spawned origins, and
 // the --accuracy sets, rows and summary, and the --scene worlds, their comparison and rows, and
-// the --scene frames world and rows.
+// the --scene frames world and rows, and --save-load's options and rows.
 #include "bench.hpp"
 #include "frames.hpp"
+#include "saved_trees.hpp"
 #include "scenes.hpp"
 #include "test_support.hpp"
 
@@ -1120,4 +1121,50 @@ TEST_CASE("the frames world: IDs, moves, the deformed mesh and the rows", "[benc
     row.compared = true, row.mismatches = 1, row.compared_rays = 36;
     CHECK(kb::frames_csv_row(row) == "primary;7;2;fast;3.000;1.500;0.500;4.000;2.000;3;12;1;36;low");
     CHECK(split(kb::frames_csv_header(), ';').size() == split(kb::frames_csv_row(row), ';').size());
+}
+
+TEST_CASE("bench --save-load: its options, and a row a quality with every step timed and the file's size", "[bench]") {
+    kb::Options opt;
+    std::string error;
+    REQUIRE(parse({"--save-load", "mesh.obj"}, opt, error));
+    CHECK(opt.save_load);
+    CHECK(opt.repeat == 7);
+    REQUIRE(parse({"--save-load", "--repeat", "2", "--subdivide", "1", "-q", "-o", "out.csv"}, opt, error));
+    CHECK((opt.repeat == 2 && opt.subdivide == 1 && opt.quiet && opt.output == "out.csv"));
+    check_refused({{"--save-load", "--size", "8x8"}, {"--save-load", "--accuracy"}, {"--save-load", "--scene", "merged"},
+                   {"--save-load", "--builder", "median"}, {"--save-load", "--leaf-sizes", "1"},
+                   {"--save-load", "--threads", "2"}, {"--compare", "none", "--save-load"}});
+
+    // A torus (indexed) and its soup: two rows each, FAST then MEDIUM, the file a little smaller
+    // than the tree's memory, and the ratios the FAST build's time over the loads'.
+    const common::Mesh torus = common::torus(24, 12, 1.0, 0.4);
+    common::Mesh soup = torus;
+    soup.indices.clear();
+    for (uint32_t t = 0; t < torus.triangle_count(); ++t)
+        for (int k = 0; k < 3; ++k)
+            for (int a = 0; a < 3; ++a) soup.positions.push_back(torus.positions[3 * size_t(torus.vertex(t, k)) + size_t(a)]);
+    soup.positions.erase(soup.positions.begin(), soup.positions.begin() + std::ptrdiff_t(torus.positions.size()));
+    REQUIRE(soup.triangle_count() == torus.triangle_count());
+    std::vector<kb::SaveLoadRow> rows;
+    REQUIRE(kb::measure_save_load(torus, "TORUS", 2, rows, error));
+    REQUIRE(kb::measure_save_load(soup, "SOUP", 1, rows, error));
+    REQUIRE(rows.size() == 4);
+    for (size_t i = 0; i < rows.size(); ++i) {
+        const kb::SaveLoadRow &r = rows[i];
+        INFO(kb::save_load_csv_row(r));
+        CHECK(r.mesh == (i < 2 ? "TORUS" : "SOUP"));
+        CHECK(r.quality == (i % 2 == 0 ? "fast" : "medium"));
+        CHECK(r.triangles == torus.triangle_count());
+        for (double ms : {r.build_ms, r.save_ms, r.load_ms, r.load_in_place_ms, r.fingerprint_ms})
+            CHECK((std::isfinite(ms) && ms >= 0));
+        CHECK(r.fast_build_ms == rows[i - i % 2].build_ms);
+        CHECK((r.saved_bytes > 288 && r.saved_bytes < r.tree_bytes));
+        const std::vector<std::string> fields = split(kb::save_load_csv_row(r), ';');
+        CHECK(fields.size() == split(kb::save_load_csv_header(), ';').size());
+    }
+    // The soup holds the same corners in the same order: the same tree, a file of the same size.
+    CHECK(rows[0].saved_bytes == rows[2].saved_bytes);
+    const std::string table = kb::save_load_table(rows);
+    CHECK(std::count(table.begin(), table.end(), '\n') == 6);
+    CHECK(table.find("| SOUP | " + std::to_string(torus.triangle_count()) + " | medium | ") != std::string::npos);
 }

@@ -124,11 +124,18 @@ std::string report_text(const TreeReport &r)
     const double per_triangle = s.triangles ? double(s.triangle_refs) / s.triangles : 0.0;
     std::string t;
     t += "mesh: " + r.mesh + " (" + r.source + ")\n";
-    t += "builder: " + r.builder + ", leaf size " + std::to_string(r.leaf_size) + ", built in " +
-         format("%.2f", r.build_ms) + " ms on 1 thread\n";
-    t += "triangles: " + std::to_string(s.triangles) + " in the tree, of " + std::to_string(r.input_triangles) +
-         " (left out: " + std::to_string(r.degenerate_triangles) + " zero-area, " +
-         std::to_string(r.skipped_triangles) + " with a NaN or infinite corner)\n";
+    if (r.tree_file.empty())
+        t += "builder: " + r.builder + ", leaf size " + std::to_string(r.leaf_size) + ", built in " +
+             format("%.2f", r.build_ms) + " ms on 1 thread\n";
+    else
+        t += "builder: " + r.builder + ", leaf size " + std::to_string(r.leaf_size) + ", loaded from " + r.tree_file +
+             " in " + format("%.2f", r.build_ms) + " ms (not built)\n";
+    t += "triangles: " + std::to_string(s.triangles) + " in the tree, of " + std::to_string(r.input_triangles);
+    if (r.tree_file.empty())
+        t += " (left out: " + std::to_string(r.degenerate_triangles) + " zero-area, " +
+             std::to_string(r.skipped_triangles) + " with a NaN or infinite corner)\n";
+    else
+        t += "\n";
     t += "nodes: " + std::to_string(s.nodes) + " (" + std::to_string(r.inner_nodes) + " inner, " +
          std::to_string(r.leaves) + " leaves of which " + std::to_string(r.empty_leaves) + " empty)\n";
     t += "depth: " + std::to_string(s.max_depth) + " (deepest leaf)\n";
@@ -155,6 +162,7 @@ std::string report_text(const TreeReport &r)
     };
     histogram("leaves by depth", "depth", r.leaves_by_depth);
     histogram("leaves by triangle count", "triangles", r.leaves_by_triangles);
+    if (!r.tree_file.empty()) t += saved_tree_text(r.tree_file, r.saved_info, false);
     return t;
 }
 
@@ -166,7 +174,12 @@ std::string report_json(const TreeReport &r)
     j += "  \"source\": " + json_string(r.source) + ",\n";
     j += "  \"builder\": " + json_string(r.builder) + ",\n";
     j += "  \"leaf_size\": " + std::to_string(r.leaf_size) + ",\n";
-    j += "  \"build_ms\": " + json_number(r.build_ms) + ",\n";
+    if (r.tree_file.empty()) {
+        j += "  \"build_ms\": " + json_number(r.build_ms) + ",\n";
+    } else {
+        j += "  \"tree_file\": " + json_string(r.tree_file) + ",\n";
+        j += "  \"load_ms\": " + json_number(r.build_ms) + ",\n";
+    }
     j += "  \"input_triangles\": " + std::to_string(r.input_triangles) + ",\n";
     j += "  \"triangles\": " + std::to_string(s.triangles) + ",\n";
     j += "  \"degenerate_triangles\": " + std::to_string(r.degenerate_triangles) + ",\n";
@@ -192,8 +205,92 @@ std::string report_json(const TreeReport &r)
         j += last ? "]\n" : "],\n";
     };
     histogram("leaves_by_depth", "depth", r.leaves_by_depth, false);
-    histogram("leaves_by_triangles", "triangles", r.leaves_by_triangles, true);
+    histogram("leaves_by_triangles", "triangles", r.leaves_by_triangles, r.tree_file.empty());
+    if (!r.tree_file.empty()) j += "  \"saved_tree\": " + saved_tree_json(r.tree_file, r.saved_info, 2) + "\n";
     return j + "}\n";
+}
+
+const char *builder_name(kdrt_builder builder)
+{
+    return builder == KDRT_BUILDER_MEDIAN ? "median" : "sah";
+}
+
+const char *quality_name(kdrt_build_quality quality)
+{
+    return quality == KDRT_BUILD_QUALITY_FAST ? "fast" : quality == KDRT_BUILD_QUALITY_HIGH ? "high" : "medium";
+}
+
+namespace {
+
+const char *intersector_name(kdrt_intersector intersector)
+{
+    return intersector == KDRT_INTERSECTOR_FAST ? "fast" : "watertight";
+}
+
+// The bounds' six floats, %.9g (each float's own value, read back the same).
+std::string bounds_list(const kdrt_aabb &b)
+{
+    std::string t;
+    for (int k = 0; k < 6; ++k) t += (k ? ", " : "") + format("%.9g", double(k < 3 ? b.min[k] : b.max[k - 3]));
+    return t;
+}
+
+}  // namespace
+
+std::string saved_tree_text(const std::string &path, const kdrt_saved_tree_info &info, bool header_only)
+{
+    const kdrt_build_options &o = info.options;
+    const kdrt_tree_stats &s = info.stats;
+    // Loaded over its mesh, the lines follow the walk's report, indented under the file's name.
+    const std::string in = header_only ? "" : "  ";
+    std::string t;
+    t += "saved tree: " + path + " (" + std::to_string(info.size) + " bytes, format version " +
+         std::to_string(info.version) + ")" + (header_only ? "" : ", its header:") + "\n";
+    t += in + "meshes: " + std::to_string(info.meshes) + ", " + std::to_string(info.mesh_triangles) + " triangles\n";
+    t += in + "built by: " + std::string(builder_name(o.builder)) +
+         (o.builder == KDRT_BUILDER_MEDIAN ? std::string() : std::string(" ") + quality_name(o.quality) + " quality") +
+         ", leaf size " + std::to_string(o.max_leaf_size) + ", depth limit " + std::to_string(info.depth_limit) +
+         ", " + intersector_name(o.intersector) + " intersector" +
+         (o.flags & KDRT_BUILD_SKIP_INVALID_TRIANGLES ? ", invalid triangles skipped" : "") + "\n";
+    t += in + "triangles: " + std::to_string(s.triangles) + " in the tree\n";
+    t += in + "nodes: " + std::to_string(s.nodes) + " (" + std::to_string(s.nodes - s.leaves) + " inner, " +
+         std::to_string(s.leaves) + " leaves), " + std::to_string(s.blocks) + " blocks\n";
+    t += in + "depth: " + std::to_string(s.max_depth) + " (deepest leaf)\n";
+    t += in + "references: " + std::to_string(s.triangle_refs) + ", " +
+         format("%.3f", s.triangles ? double(s.triangle_refs) / s.triangles : 0.0) + " per triangle\n";
+    t += in + "bounds: " + bounds_list(info.bounds) + " (min x y z, max x y z)\n";
+    if (header_only)
+        t += "the header only: give the mesh it was saved over (kdrt-inspect MESH --tree FILE) to load the tree and walk it\n";
+    return t;
+}
+
+std::string saved_tree_json(const std::string &path, const kdrt_saved_tree_info &info, int indent)
+{
+    const kdrt_build_options &o = info.options;
+    const kdrt_tree_stats &s = info.stats;
+    const std::string in(size_t(indent) + 2, ' ');
+    std::string j = "{\n";
+    j += in + "\"tree_file\": " + json_string(path) + ",\n";
+    j += in + "\"bytes\": " + std::to_string(info.size) + ",\n";
+    j += in + "\"version\": " + std::to_string(info.version) + ",\n";
+    j += in + "\"meshes\": " + std::to_string(info.meshes) + ",\n";
+    j += in + "\"mesh_triangles\": " + std::to_string(info.mesh_triangles) + ",\n";
+    j += in + "\"builder\": " + json_string(builder_name(o.builder)) + ",\n";
+    j += in + "\"quality\": " + json_string(quality_name(o.quality)) + ",\n";
+    j += in + "\"leaf_size\": " + std::to_string(o.max_leaf_size) + ",\n";
+    j += in + "\"depth_limit\": " + std::to_string(info.depth_limit) + ",\n";
+    j += in + "\"intersector\": " + json_string(intersector_name(o.intersector)) + ",\n";
+    j += in + "\"triangles\": " + std::to_string(s.triangles) + ",\n";
+    j += in + "\"nodes\": " + std::to_string(s.nodes) + ",\n";
+    j += in + "\"leaves\": " + std::to_string(s.leaves) + ",\n";
+    j += in + "\"blocks\": " + std::to_string(s.blocks) + ",\n";
+    j += in + "\"max_depth\": " + std::to_string(s.max_depth) + ",\n";
+    j += in + "\"references\": " + std::to_string(s.triangle_refs) + ",\n";
+    j += in + "\"bounds\": [";  // null for the empty box's infinities
+    for (int k = 0; k < 6; ++k)
+        j += (k ? ", " : "") + json_number(double(k < 3 ? info.bounds.min[k] : info.bounds.max[k - 3]));
+    j += "]\n";
+    return j + std::string(size_t(indent), ' ') + "}";
 }
 
 bool boxes_to_depth(const kdrt_tree *tree, uint32_t max_depth, std::vector<DepthBox> &out, std::string &error)

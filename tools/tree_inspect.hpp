@@ -22,7 +22,12 @@ struct TreeReport {
     // Left out of the tree (kdrt_build_report): zero-area ones, and, under
     // KDRT_BUILD_SKIP_INVALID_TRIANGLES, those with a NaN or infinite corner.
     uint32_t degenerate_triangles = 0, skipped_triangles = 0;
-    double build_ms = 0;     // kdrt_tree_build on the calling thread
+    double build_ms = 0;     // kdrt_tree_build on the calling thread, or kdrt_tree_load's time
+    // Non-empty: the tree was loaded from this saved tree (kdrt_tree_load), not built; builder and
+    // leaf_size are then the file's, build_ms the load's time, and saved_info the file's header
+    // (kdrt_saved_tree_read_info), which the report prints after the walk's statistics.
+    std::string tree_file;
+    kdrt_saved_tree_info saved_info{};
     kdrt_tree_stats stats{}; // kdrt_tree_get_stats
     // From the walk:
     uint64_t inner_nodes = 0, leaves = 0, empty_leaves = 0, references = 0;
@@ -36,6 +41,16 @@ bool walk_tree(const kdrt_tree *tree, TreeReport &report, std::string &error);
 
 std::string report_text(const TreeReport &report);
 std::string report_json(const TreeReport &report);
+
+// What a saved tree's header says (kdrt_saved_tree_read_info): kdrt-inspect --tree FILE without
+// its mesh (header_only: with a last line saying how to load the tree), and the end of
+// report_text() for a loaded tree. saved_tree_json: a JSON object, indented by `indent` spaces
+// (report_json()'s "saved_tree" at 2), its closing brace without a newline.
+std::string saved_tree_text(const std::string &path, const kdrt_saved_tree_info &info, bool header_only);
+std::string saved_tree_json(const std::string &path, const kdrt_saved_tree_info &info, int indent = 0);
+// "sah", "median" (the default builder resolved as a build resolves it); "fast", "medium", "high".
+const char *builder_name(kdrt_builder builder);
+const char *quality_name(kdrt_build_quality quality);
 
 // The boxes of every node at depth <= max_depth, shallowest first (depth-first within a level).
 struct DepthBox {

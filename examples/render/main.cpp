@@ -4,6 +4,7 @@
 #include "common/mesh_io.hpp"  // common::mesh_dir_help
 #include "common/output.hpp"  // common::guarded_main, UsageError
 #include "common/parse.hpp"  // common::parse_count
+#include "common/saved_tree.hpp"  // common::read_saved_tree, common::saved_tree_refusal
 #include "render.hpp"
 #include "command_line.hpp"
 #include "scene_file.hpp"
@@ -26,7 +27,8 @@ namespace {
 const char *const kUsage =
     "usage: kdrt-render [--preset NAME | --scene FILE] [--set KEY=VALUE]... [--size WxH]\n"
     "                   [--threads N] [--seed N] [--animate KEY=FROM:TO --frames N]\n"
-    "                   [--reference REF.exr] [--exr-float] -o OUT.png|OUT.exr\n"
+    "                   [--reference REF.exr] [--exr-float] [--tree FILE | --save-tree FILE]\n"
+    "                   -o OUT.png|OUT.exr\n"
     "       kdrt-render --list-presets | --help\n"
     "\n"
     "Renders a preset of the original ray tracer (default PICTURE) or a YAML scene file, and\n"
@@ -48,6 +50,13 @@ const char *const kUsage =
     "  --reference REF     after writing OUT, print rmse=<value> (linear RGB, every pixel and\n"
     "                      channel) against REF (.exr or .png, the same size) on stdout\n"
     "  --exr-float         32-bit float EXR channels instead of half\n"
+    "  --save-tree FILE    once the meshes' tree is built, save it to FILE (kdrt_scene_save_meshes),\n"
+    "                      before the render\n"
+    "  --tree FILE         load the meshes' tree from FILE (a --save-tree of the same scene)\n"
+    "                      instead of building it: the same image. A file that is not a saved\n"
+    "                      tree, of another format version, truncated, damaged, saved over other\n"
+    "                      meshes or with another MAX_LEAF_SIZE is refused (exit status 1), never\n"
+    "                      built around: bake it again with --save-tree\n"
     "  -o OUT              output file, .png or .exr (required)\n"
     "  --list-presets      the presets, one a line, in the original's order\n"
     "  --help              this text\n"
@@ -57,8 +66,9 @@ const char *const kUsage =
     "  MESH_DIR;\n"
     "without that folder the presets use a generated torus.\n"
     "\n"
-    "Every output file is checked before the render: one that cannot be written is a failure at\n"
-    "once. Exit status: 0 success, 1 failure (unreadable mesh or scene, unwritable output), 2 a bad\n"
+    "Every output file (--save-tree's too) is checked before the render: one that cannot be\n"
+    "written is a failure at once. Exit status: 0 success, 1 failure (unreadable mesh or scene, a\n"
+    "saved tree refused, unwritable output), 2 a bad\n"
     "command line, 128+N killed by signal N (130 SIGINT, 143 SIGTERM; the old output kept).\n";
 
 using common::UsageError;
@@ -98,7 +108,7 @@ std::string format_value(double v)
 int run(int argc, char **argv)
 {
     kr::SceneArgs args;
-    std::string out, reference, animate;
+    std::string out, reference, animate, tree_path, save_tree_path;
     uint64_t frames = 0;
     bool exr_float = false, have_frames = false;
 
@@ -125,6 +135,9 @@ int run(int argc, char **argv)
             have_frames = true;
         } else if (arg == "--reference") {
             reference = value();
+        } else if (arg == "--tree" || arg == "--save-tree") {
+            (arg == "--tree" ? tree_path : save_tree_path) = value();
+            if ((arg == "--tree" ? tree_path : save_tree_path).empty()) throw UsageError{arg + " needs a file, not ''"};
         } else if (arg == "--exr-float") {
             exr_float = true;
         } else if (arg == "-o") {
@@ -139,6 +152,8 @@ int run(int argc, char **argv)
     if (!args.preset.empty() && !args.scene_file.empty()) throw UsageError{"give --preset or --scene, not both"};
     if (animate.empty() != !have_frames) throw UsageError{"--animate and --frames go together"};
     if (!animate.empty() && !reference.empty()) throw UsageError{"--reference compares one image: not with --animate"};
+    if (!tree_path.empty() && !save_tree_path.empty())
+        throw UsageError{"give --tree or --save-tree, not both: a loaded tree saves to the same bytes"};
 
     kr::RenderOptions options;
     options.width = args.width, options.height = args.height;
@@ -170,13 +185,30 @@ int run(int argc, char **argv)
             if (!kr::apply_setting(probe, animate_key, frame_values.back(), error))
                 throw UsageError{"--animate frame " + std::to_string(f) + ": " + error};
             if (probe.settings.mesh != scene.settings.mesh) throw UsageError{"--animate: MESH is not a number"};
+            if (probe.settings.max_leaf_size != scene.settings.max_leaf_size && !(tree_path + save_tree_path).empty())
+                throw UsageError{std::string(tree_path.empty() ? "--save-tree" : "--tree") +
+                                 " saves or loads one tree: not with --animate MAX_LEAF_SIZE"};
         }
     }
+    if (scene.meshes.empty() && !(tree_path + save_tree_path).empty())
+        throw UsageError{std::string(tree_path.empty() ? "--save-tree" : "--tree") + ": the scene " + scene.name +
+                         " has no meshes, so no tree"};
 
     // Every output file is checked before the work: a folder of that name, a read-only file or a
     // folder no file can be created in fails now, not after the render.
     for (uint32_t f = 0; f < (frame_values.empty() ? 1u : uint32_t(frame_values.size())); ++f)
         if (!common::check_replaceable(frame_values.empty() ? out : frame_path(out, f), error)) return fail(error, 1);
+    if (!save_tree_path.empty() && !common::check_replaceable(save_tree_path, error)) return fail(error, 1);
+
+    // A saved tree is read and its header checked before the meshes are loaded: a file that is no
+    // saved tree costs nothing; one of other meshes is found once they are loaded.
+    std::vector<unsigned char> saved;
+    if (!tree_path.empty()) {
+        if (!common::read_saved_tree(tree_path, saved, error)) return fail(error, 1);
+        kdrt_saved_tree_info info;
+        const kdrt_result r = kdrt_saved_tree_read_info(saved.data(), saved.size(), &info);
+        if (r != KDRT_SUCCESS) return fail(common::saved_tree_refusal(r, tree_path, saved, 0, 0), 1);
+    }
 
     // The reference is read and its size checked before the render, not after it.
     kr::Image ref;
@@ -197,7 +229,13 @@ int run(int argc, char **argv)
     options.threads = threads;
     options.progress = isatty(STDERR_FILENO) != 0;
     kr::Renderer renderer;
-    if (!renderer.prepare(scene, threads, error)) return fail(error, 1);
+    if (!(tree_path.empty() ? renderer.prepare(scene, threads, error)
+                            : renderer.prepare_saved(scene, threads, saved, tree_path, error)))
+        return fail(error, 1);
+    if (!save_tree_path.empty()) {
+        if (!renderer.save_tree(save_tree_path, error)) return fail(error, 1);
+        std::fprintf(stderr, "kdrt-render: the meshes' tree saved -> %s\n", save_tree_path.c_str());
+    }
     double build_seconds = renderer.build_seconds(), render_seconds = 0;
     uint32_t built_leaf_size = scene.settings.max_leaf_size;
 
@@ -225,9 +263,10 @@ int run(int argc, char **argv)
     }
 
     std::fprintf(stderr,
-                 "kdrt-render: %s, %ux%u, %u spp, %u threads, meshes: %s, tree build %.3f s, render %.3f s%s -> %s\n",
+                 "kdrt-render: %s, %ux%u, %u spp, %u threads, meshes: %s, tree %s %.3f s, render %.3f s%s -> %s\n",
                  scene.name.c_str(), options.width, options.height, scene.settings.nsamples, threads,
-                 scene.meshes.empty() ? "none" : mesh_source.c_str(), build_seconds, render_seconds,
+                 scene.meshes.empty() ? "none" : mesh_source.c_str(),
+                 tree_path.empty() ? "build" : ("loaded from " + tree_path).c_str(), build_seconds, render_seconds,
                  frame_count > 1 ? (" (" + std::to_string(frame_count) + " frames)").c_str() : "",
                  frame_count > 1 ? frame_path(out, 0).c_str() : out.c_str());
 

@@ -13,6 +13,7 @@
 
 #include "render.hpp"
 #include "common/random.hpp"
+#include "common/saved_tree.hpp"
 #include "common/thread_scheduler.hpp"
 
 #include <unistd.h>
@@ -215,9 +216,13 @@ struct Renderer::Impl {
     // mesh's index and equal t goes to the lower index. NULL when the scene has no meshes.
     kdrt_scene *world = nullptr;
     std::vector<MeshData> meshes;
-    kdrt_build_options options{};  // the build's, for tree_boxes()
+    kdrt_build_options options{};  // the build's (or the saved tree's), for tree_boxes()
     unsigned threads = 0;
     double build_seconds = 0;
+
+    // Renderer::prepare and prepare_saved: built, or loaded from `saved` when not NULL.
+    bool prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder,
+                 const std::vector<unsigned char> *saved, const std::string &saved_path);
 
     ~Impl() { clear(); }
     void clear()
@@ -720,6 +725,31 @@ double Renderer::build_seconds() const { return impl_->build_seconds; }
 
 bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder)
 {
+    return impl_->prepare(scene, threads, error, builder, nullptr, "");
+}
+
+bool Renderer::prepare_saved(const Scene &scene, unsigned threads, const std::vector<unsigned char> &saved,
+                             const std::string &path, std::string &error)
+{
+    return impl_->prepare(scene, threads, error, TreeBuilder::sah, &saved, path);
+}
+
+bool Renderer::save_tree(const std::string &path, std::string &error) const
+{
+    if (!impl_->world) {
+        error = "cannot save the tree to '" + path + "': the scene has no meshes";
+        return false;
+    }
+    const auto save = [](const void *world, kdrt_write_fn write, void *user) {
+        return kdrt_scene_save_meshes(static_cast<const kdrt_scene *>(world), write, user);
+    };
+    return common::write_saved_tree(path, save, impl_->world, error);
+}
+
+bool Renderer::Impl::prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder,
+                             const std::vector<unsigned char> *saved, const std::string &saved_path)
+{
+    Impl *const impl_ = this;
     impl_->clear();
     impl_->scene = &scene;
     for (const Sphere &s : scene.spheres)
@@ -775,7 +805,38 @@ bool Renderer::prepare(const Scene &scene, unsigned threads, std::string &error,
     if (builder == TreeBuilder::median) options.builder = KDRT_BUILDER_MEDIAN;
     options.scheduler = scheduler.hooks();
     impl_->threads = threads;
-    if (!geometries.empty()) {
+    if (saved) {
+        // The file's build options become the scene's (kdrt_scene_load), and tree_boxes()'.
+        kdrt_saved_tree_info info;
+        kdrt_result r = kdrt_saved_tree_read_info(saved->data(), saved->size(), &info);
+        if (r == KDRT_SUCCESS && info.meshes != geometries.size()) r = KDRT_ERROR_MESH_MISMATCH;
+        kdrt_build_report report{};
+        report.invalid_geometry = KDRT_INVALID_ID;
+        if (r == KDRT_SUCCESS && !geometries.empty())
+            r = kdrt_scene_load(geometries.data(), uint32_t(geometries.size()), saved->data(), saved->size(), &options,
+                                &impl_->world, &report);
+        if (r != KDRT_SUCCESS) {
+            uint64_t triangles = 0;
+            for (const MeshInstance &mi : scene.meshes) triangles += mi.mesh.triangle_count();
+            error = common::saved_tree_refusal(r, saved_path, *saved, triangles, uint32_t(geometries.size()));
+            const uint32_t bad = report.invalid_geometry;
+            if (r == KDRT_ERROR_MESH_MISMATCH && bad < scene.meshes.size())
+                error += "; the first that differs: mesh " + std::to_string(bad) + ", " + scene.meshes[bad].source;
+            impl_->clear();
+            return false;
+        }
+        if (info.options.max_leaf_size != options.max_leaf_size) {
+            error = "'" + saved_path + "' holds a tree of leaf size " + std::to_string(info.options.max_leaf_size) +
+                    " and the scene asks MAX_LEAF_SIZE=" + std::to_string(options.max_leaf_size) +
+                    " (save the tree again with --save-tree, or --set MAX_LEAF_SIZE=" +
+                    std::to_string(info.options.max_leaf_size) + ")";
+            impl_->clear();
+            return false;
+        }
+        const kdrt_scheduler hooks = options.scheduler;
+        options = info.options;
+        options.scheduler = hooks;
+    } else if (!geometries.empty()) {
         kdrt_build_report report;
         const kdrt_result r = kdrt_scene_build(geometries.data(), uint32_t(geometries.size()), &options,
                                                &impl_->world, &report);

@@ -116,7 +116,18 @@ public:
     // Builds the meshes' scene (on `threads` threads, 0 = every core; by the SAH unless told
     // otherwise), after load_meshes. false with a message when it cannot be built.
     bool prepare(const Scene &scene, unsigned threads, std::string &error, TreeBuilder builder = TreeBuilder::sah);
+    // The same with the meshes' tree loaded (kdrt_scene_load) from `saved`, the bytes of
+    // save_tree()'s file at `path` (for the messages), instead of built: the builder and leaf size
+    // are the file's. false with a message naming the file and why it was refused: not a saved
+    // tree, another format version, truncated, damaged, or saved over other meshes (naming the
+    // first that differs), or of another leaf size than the scene's MAX_LEAF_SIZE.
+    bool prepare_saved(const Scene &scene, unsigned threads, const std::vector<unsigned char> &saved,
+                       const std::string &path, std::string &error);
+    // Seconds prepare() took to build the tree, or prepare_saved() to load it.
     double build_seconds() const;
+    // The meshes' tree as prepared, saved to path (kdrt_scene_save_meshes, written whole or not
+    // at all). false with a message when there are no meshes or it cannot be written.
+    bool save_tree(const std::string &path, std::string &error) const;
 
     // Renders the scene into image (resized to options' size): NSAMPLES samples a pixel, one at
     // the pixel's centre, more jittered over it, in 4x4 tiles on options.threads threads: each
