@@ -71,6 +71,11 @@ struct Options {
     // Ray/triangle tests to run; empty: watertight in the leaf-size CSV, both under --accuracy.
     std::vector<kdrt_intersector> intersectors;
     bool accuracy = false;             // --accuracy: error counts per intersector, not leaf sizes
+    // --points: closest-point and overlap queries (points.hpp), --queries closest-point queries
+    // per kind of point (a tenth of that per overlap size); --reference-rays checks that many of
+    // each against the brute force (1000 unless given).
+    bool points = false;
+    size_t point_queries = 100000;
     size_t hard_rays = 20000;          // --accuracy: rays per watertight and per hard-case set
     // --scene: "merged" and/or "field", in the order given (scenes.hpp), or "frames" alone
     // (frames.hpp); empty: not the scene mode.
