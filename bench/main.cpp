@@ -308,10 +308,10 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
     auto emit = [&](const kb::PointsRow &row) {
         if (written) written = csv.line(kb::points_csv_row(row), write_error);
         char line[256];
-        std::snprintf(line, sizeof line, "%s %s %s%s: kdrt %.1f ms, Embree %.1f ms (%.2fx), mismatches %zu / %zu of %zu",
+        std::snprintf(line, sizeof line, "%s %s %s%s: kdrt %.1f ms, Embree %.1f ms (%.2fx; CPU time %.2fx), mismatches %zu / %zu of %zu",
                       row.mesh.c_str(), row.query.c_str(), row.kind.c_str(),
                       row.query == "closest" ? "" : (" " + std::to_string(row.size)).c_str(), row.kdrt_ms, row.embree_ms,
-                      row.ratio, row.kdrt_mismatches, row.embree_mismatches, row.reference);
+                      row.ratio, row.cpu_ratio, row.kdrt_mismatches, row.embree_mismatches, row.reference);
         progress.status(line);
     };
     for (const Input &in : inputs) {
@@ -342,15 +342,20 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
             std::vector<kdrt_closest> answers(n);
             std::vector<float> peer_distance;
             std::vector<uint32_t> peer_triangle;
-            std::vector<double> kdrt_ms, peer_ms;
+            std::vector<double> kdrt_ms, peer_ms, kdrt_cpu, peer_cpu;
             for (unsigned rep = 0; rep < opt.repeat; ++rep) {
                 auto run_kdrt = [&] {
+                    const double cpu = kb::thread_cpu_ms();
                     kdrt_ms.push_back(common::timed_parallel(n, 1, [&](size_t i) {
                         kdrt_closest_point(tree.get(), &points[3 * i], INFINITY, &answers[i]);
                     }));
+                    kdrt_cpu.push_back(kb::thread_cpu_ms() - cpu);
                 };
                 auto run_peer = [&] {
-                    if (opt.compare_embree) peer_ms.push_back(peer.closest(points, peer_distance, peer_triangle));
+                    if (!opt.compare_embree) return;
+                    const double cpu = kb::thread_cpu_ms();
+                    peer_ms.push_back(peer.closest(points, peer_distance, peer_triangle));
+                    peer_cpu.push_back(kb::thread_cpu_ms() - cpu);
                 };
                 if (rep % 2) run_peer(), run_kdrt();  // in turns: neither always runs first
                 else run_kdrt(), run_peer();
@@ -361,6 +366,9 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
             row.kdrt_ms = median_of(kdrt_ms);
             row.embree_ms = peer_ms.empty() ? 0 : median_of(peer_ms);
             row.ratio = peer_ms.empty() ? 0 : row.embree_ms / row.kdrt_ms;
+            row.kdrt_cpu_ms = median_of(kdrt_cpu);
+            row.embree_cpu_ms = peer_cpu.empty() ? 0 : median_of(peer_cpu);
+            row.cpu_ratio = peer_cpu.empty() ? 0 : row.embree_cpu_ms / row.kdrt_cpu_ms;
             for (const kdrt_closest &a : answers) row.found += a.triangle != KDRT_INVALID_ID;
             row.reference = std::min(n, opt.reference_rays == 0 ? n : opt.reference_rays);
             for (size_t i = 0; i < row.reference; ++i) {
@@ -385,11 +393,12 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
                 progress.step(in.label + ": " + std::to_string(n) + (sphere ? " balls " : " boxes ") +
                               std::to_string(size) + " of the box across");
                 std::vector<uint64_t> counts(n);
-                std::vector<double> ms;
+                std::vector<double> ms, cpu_ms;
                 const float radius = float(0.5 * size * diagonal);
                 float half[3];
                 for (int a = 0; a < 3; ++a) half[a] = float(0.5 * size * (double(box.max[a]) - box.min[a]));
-                for (unsigned rep = 0; rep < opt.repeat; ++rep)
+                for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                    const double cpu = kb::thread_cpu_ms();
                     ms.push_back(common::timed_parallel(n, 1, [&](size_t i) {
                         const float *c = &centres[3 * i];
                         if (sphere) {
@@ -400,10 +409,13 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
                             kdrt_overlap_box(tree.get(), &b, nullptr, nullptr, &counts[i]);
                         }
                     }));
+                    cpu_ms.push_back(kb::thread_cpu_ms() - cpu);
+                }
                 kb::PointsRow row;
                 row.mesh = in.label, row.triangles = in.mesh.triangle_count(), row.query = sphere ? "sphere" : "box";
                 row.kind = "surface", row.size = size, row.queries = n, row.repeat = opt.repeat;
                 row.kdrt_ms = median_of(ms);
+                row.kdrt_cpu_ms = median_of(cpu_ms);
                 for (uint64_t c : counts) row.found += c;
                 if (sphere) {  // the balls' counts against the brute force
                     const size_t limit = opt.reference_rays == 0 ? n : std::max<size_t>(1, opt.reference_rays / 10);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <time.h>
 
 namespace kb {
 
@@ -132,16 +133,22 @@ uint64_t brute_sphere_count(const common::Mesh &mesh, const float center[3], flo
 
 std::string points_csv_header() {
     return "Mesh;Triangles;Query;Kind;Size;Queries;KdrtMs;EmbreeMs;Ratio;Found;ReferenceQueries;KdrtMismatches;"
-           "EmbreeMismatches;KdrtMaxError;EmbreeMaxError;Repeat";
+           "EmbreeMismatches;KdrtMaxError;EmbreeMaxError;Repeat;KdrtCpuMs;EmbreeCpuMs;CpuRatio";
 }
 
 std::string points_csv_row(const PointsRow &r) {
-    char buf[512];
-    std::snprintf(buf, sizeof buf, "%s;%u;%s;%s;%g;%zu;%.3f;%.3f;%.3f;%llu;%zu;%zu;%zu;%.3g;%.3g;%u", r.mesh.c_str(),
+    char buf[640];
+    std::snprintf(buf, sizeof buf, "%s;%u;%s;%s;%g;%zu;%.3f;%.3f;%.3f;%llu;%zu;%zu;%zu;%.3g;%.3g;%u;%.3f;%.3f;%.3f", r.mesh.c_str(),
                   r.triangles, r.query.c_str(), r.kind.c_str(), r.size, r.queries, r.kdrt_ms, r.embree_ms, r.ratio,
                   (unsigned long long)r.found, r.reference, r.kdrt_mismatches, r.embree_mismatches, r.kdrt_max_error,
-                  r.embree_max_error, r.repeat);
+                  r.embree_max_error, r.repeat, r.kdrt_cpu_ms, r.embree_cpu_ms, r.cpu_ratio);
     return buf;
+}
+
+double thread_cpu_ms() {
+    timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
 }
 
 }  // namespace kb

@@ -49,6 +49,9 @@ struct PointsRow {
     size_t queries = 0;
     double kdrt_ms = 0, embree_ms = 0;  // medians of the repetitions; embree_ms 0: not measured
     double ratio = 0;                   // embree_ms / kdrt_ms: above 1, kdrt is faster
+    // The same passes' CPU time of the querying thread (CLOCK_THREAD_CPUTIME_ID), medians: on a
+    // shared machine, the time without the other programs' turns on the core.
+    double kdrt_cpu_ms = 0, embree_cpu_ms = 0, cpu_ratio = 0;
     uint64_t found = 0;                 // closest: points with an answer; box, sphere: triangles found
     size_t reference = 0;               // queries checked against the brute force
     size_t kdrt_mismatches = 0, embree_mismatches = 0;
@@ -57,5 +60,8 @@ struct PointsRow {
 };
 std::string points_csv_header();
 std::string points_csv_row(const PointsRow &row);
+
+// The CPU time of the calling thread, in milliseconds.
+double thread_cpu_ms();
 
 }  // namespace kb
