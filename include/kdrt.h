@@ -6825,6 +6825,10 @@ typedef struct kdrt__closest_best {
     uint32_t key, triangle, instance;
     int found;
     float corners[3][3]; /* its corners in the world, for the point */
+    /* The supporting-plane bound (kdrt__closest_walk_body): w, about the best point less the
+       query's point, and its length, when plane is 1; 0 when the best changed since. */
+    double w[3], w_length;
+    int plane;
 } kdrt__closest_best;
 
 /* The bounds a leaf block's triangles are pruned by: for each lane, the distance from q to the
@@ -6891,7 +6895,48 @@ static KDRT__FORCEINLINE void kdrt__closest_offer(kdrt__closest_best *best, doub
         best->key = key, best->triangle = id, best->found = 1;
         best->instance = in ? in->id : KDRT_INVALID_ID;
         memcpy(best->corners, world, sizeof best->corners);
+        best->plane = 0;
     }
+}
+
+/* Sets best's w to its point less q (the query's point in the world), for the supporting-plane
+   bound; plane stays 0 when that is 0 or not finite. */
+static void kdrt__closest_plane(kdrt__closest_best *best, const float q[3])
+{
+    double n2 = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        const double c0 = best->corners[0][a];
+        best->w[a] = c0 + best->u * ((double)best->corners[1][a] - c0) +
+                     best->v * ((double)best->corners[2][a] - c0) - q[a];
+        n2 += best->w[a] * best->w[a];
+    }
+    best->w_length = sqrt(n2);
+    best->plane = best->w_length > 0.0 && best->w_length < INFINITY ? 1 : -1;
+}
+
+/* A lower bound of the distance from y to the triangle of block's lane: for any vector w,
+   |x - y| >= w . (x - y) / |w|, and over the triangle w . (x - y) is least at a corner. Each
+   w . (p - y) is lowered by 2^-48 of the sum of its terms' magnitudes (more than its rounding),
+   and |w| raised by 2^-48 (more than its): a bound of the exact distance whatever w is. With w
+   the best point less y, triangles behind the best one's supporting plane (most of a convex
+   surface's, seen from outside) are left out without measuring them. 0 when it cannot say. */
+static KDRT__FORCEINLINE double kdrt__plane_bound(const kdrt__block *block, uint32_t lane,
+                                                  const double y[3], const double w[3],
+                                                  double w_length)
+{
+    double least = INFINITY;
+    int k, a;
+    for (k = 0; k < 3; ++k) {
+        double t = 0.0, m = 0.0;
+        for (a = 0; a < 3; ++a) {
+            const double x = w[a] * ((double)block->corner[3 * k + a][lane] - y[a]);
+            t += x, m += fabs(x);
+        }
+        t -= 3.552713678800501e-15 /* 2^-48 */ * m;
+        least = t < least ? t : least;
+    }
+    return least > 0.0 ? least / (w_length * (1.0 + 3.552713678800501e-15)) : 0.0;
 }
 
 /* One tree's walk for a closest-point query: the nearer child first, the farther one on the stack
@@ -6899,9 +6944,8 @@ static KDRT__FORCEINLINE void kdrt__closest_offer(kdrt__closest_best *best, doub
    slop: a lower bound of the world distance of any triangle it holds, CLOSEST POINT AND OVERLAP)
    exceeds the best so far. Its triangles get key and instance; mask against the parts' masks
    (a scene's mesh tree: triangles compared as the tree numbers them, which is the (geometry ID,
-   triangle) order). A tree's own triangles (no instance) are pruned a leaf block at a time by
-   their boxes' distances (kdrt__block_bounds, 8 lanes with AVX2 when avx2 is set), then
-   measured nearest box first, so that the first of them sets a tight bound for the others; an
+   triangle) order). A tree's own triangles (no instance) are pruned by their boxes' distances a
+   leaf block at a time (kdrt__block_bounds, 8 lanes at once with AVX2 when avx2 is set); an
    instance's, carried into the world one by one, by their world boxes. Which triangles are
    measured, and in which order, changes the work, never the answer: the best is the first in
    the (distance, key, triangle) order whatever the order it is offered in. */
@@ -6954,25 +6998,22 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                     const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
                     const uint32_t lanes = count - i < KDRT__LANES ? count - i : KDRT__LANES;
                     double bounds[KDRT__LANES];
-                    uint32_t left = lanes < KDRT__LANES ? (1u << lanes) - 1u : 0xFFu;
 #ifdef KDRT__AVX2
                     if (avx2) kdrt__block_bounds_avx2(block, q, bounds);
                     else
 #endif
                         kdrt__block_bounds(block, q, bounds);
-                    /* Nearest box first; the others against the best as it then is. */
-                    while (left) {
+                    for (lane = 0; lane < lanes; ++lane) {
                         float world[3][3];
                         double d, u, v;
-                        uint32_t id, other;
-                        lane = KDRT__LANES;
-                        for (other = 0; other < KDRT__LANES; ++other)
-                            if ((left >> other & 1u) &&
-                                (lane == KDRT__LANES || bounds[other] < bounds[lane]))
-                                lane = other;
-                        left &= ~(1u << lane);
-                        if (bounds[lane] > best->distance) break; /* and so are the rest */
-                        id = block->id[lane];
+                        const uint32_t id = block->id[lane];
+                        if (bounds[lane] > best->distance) continue;
+                        if (best->found && best->plane == 0) kdrt__closest_plane(best, q);
+                        if (best->plane > 0 &&
+                            kdrt__plane_bound(block, lane, y, best->w, best->w_length) *
+                                    KDRT__PRUNE_SLACK >
+                                best->distance)
+                            continue;
                         if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask)) continue;
                         for (a = 0; a < 9; ++a) world[a / 3][a % 3] = block->corner[a][lane];
                         d = kdrt__point_triangle(world, q, &u, &v);
