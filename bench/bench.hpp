@@ -72,7 +72,7 @@ struct Options {
     std::vector<kdrt_intersector> intersectors;
     bool accuracy = false;             // --accuracy: error counts per intersector, not leaf sizes
     // --points: closest-point and overlap queries (points.hpp), --queries closest-point queries
-    // per kind of point (a tenth of that per overlap size); --reference-rays checks that many of
+    // per kind of point (a hundredth of that per overlap size); --reference-rays checks that many of
     // each against the brute force (1000 unless given).
     bool points = false;
     size_t point_queries = 100000;

@@ -301,7 +301,7 @@ double median_of(std::vector<double> xs) {
 // queries by size, a CSV row each (bench/README.md, "Closest point and overlap").
 int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &csv, Progress &progress, int failures) {
     const uint64_t seed = 1;
-    const double sizes[] = {0.01, 0.05, 0.2};
+    const double sizes[] = {0.01, 0.03, 0.1};
     std::string error, write_error;
     bool written = csv.line(kb::points_csv_header(), write_error);
     progress.total = inputs.size() * (std::size(kb::kPointKinds) + 2 * std::size(sizes));
@@ -384,8 +384,8 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
             }
             emit(row);
         }
-        // Overlap: boxes and balls around points near the surface, a tenth as many queries.
-        const size_t n = std::max<size_t>(1, opt.point_queries / 10);
+        // Overlap: boxes and balls around points near the surface, a hundredth as many queries.
+        const size_t n = std::max<size_t>(1, opt.point_queries / 100);
         const std::vector<float> centres = kb::make_points(in.mesh, kb::PointKind::surface, n, seed + 1);
         for (int sphere = 0; sphere < 2 && written; ++sphere)
             for (double size : sizes) {

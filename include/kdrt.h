@@ -6630,7 +6630,8 @@ static KDRT__FORCEINLINE double kdrt__dop(double a, double b, double c, double d
     const double w = c * d;
     return fma(a, b, -w) + fma(-c, d, w);
 }
-static KDRT__FORCEINLINE void kdrt__cross_accurate(const double x[3], const double y[3], double out[3])
+static KDRT__FORCEINLINE void kdrt__cross_accurate(const double x[3], const double y[3],
+                                                   double out[3])
 {
     out[0] = kdrt__dop(x[1], y[2], x[2], y[1]);
     out[1] = kdrt__dop(x[2], y[0], x[0], y[2]);
@@ -6671,7 +6672,8 @@ static KDRT__FORCEINLINE double kdrt__origin_segment(const double S[3], const do
    is then |n . A| / |n|; otherwise it is the nearest of the three edges. The cross products are
    formed by fma with one rounding a component, so slivers keep their normals. Error: see
    CLOSEST POINT AND OVERLAP. */
-static KDRT__FORCEINLINE double kdrt__point_triangle(float c[3][3], const float point[3], double *u, double *v)
+static KDRT__FORCEINLINE double kdrt__point_triangle(float c[3][3], const float point[3], double *u,
+                                                     double *v)
 {
     double A[3], B[3], C[3], e0[3], e1[3], e2[3], n[3], m[3], nn, d, t, best, bu, bv;
     int k;
@@ -6762,6 +6764,13 @@ typedef struct kdrt__box_todo {
     float lo[3], hi[3];
 } kdrt__box_todo;
 
+/* A node waiting on the closest-point walk's stack: the distances from the query's point to its
+   box along each axis (0 within its extent), whose squares sum to the box's squared distance. */
+typedef struct kdrt__point_todo {
+    uint32_t node;
+    double off[3];
+} kdrt__point_todo;
+
 /* The margin of the walks' pruning: a node or a triangle is left out only when its distance,
    less 2^-40 of it, exceeds the best so far, so that rounding (a few ulps of double) never
    prunes a triangle whose computed distance would tie or win. */
@@ -6831,74 +6840,6 @@ typedef struct kdrt__closest_best {
     int plane;
 } kdrt__closest_best;
 
-/* The bounds a leaf block's triangles are pruned by: for each lane, the distance from q to the
-   lane's box (its corners' box), times KDRT__PRUNE_SLACK, in double (a lane past the leaf's
-   count gives whatever its corners give, unused). */
-static void kdrt__block_bounds(const kdrt__block *block, const float q[3], double bound[KDRT__LANES])
-{
-    uint32_t lane;
-    int a, k;
-    for (lane = 0; lane < KDRT__LANES; ++lane) {
-        double d2 = 0.0;
-        for (a = 0; a < 3; ++a) {
-            float lo = block->corner[a][lane], hi = lo;
-            double d;
-            for (k = 1; k < 3; ++k) {
-                const float c = block->corner[3 * k + a][lane];
-                lo = c < lo ? c : lo;
-                hi = c > hi ? c : hi;
-            }
-            d = q[a] < lo ? (double)lo - q[a] : (q[a] > hi ? (double)q[a] - hi : 0.0);
-            d2 += d * d;
-        }
-        bound[lane] = sqrt(d2) * KDRT__PRUNE_SLACK;
-    }
-}
-
-#ifdef KDRT__AVX2
-/* The same, 4 lanes at a time in double with AVX2: the same operations on the same values
-   (the corners widened exactly, one rounding a subtraction, product and sum, sqrt correctly
-   rounded), so the same bounds bit for bit. */
-KDRT__TARGET_AVX2 static void kdrt__block_bounds_avx2(const kdrt__block *block, const float q[3],
-                                                      double bound[KDRT__LANES])
-{
-    const __m256d zero = _mm256_setzero_pd(), slack = _mm256_set1_pd(KDRT__PRUNE_SLACK);
-    int half, a;
-    for (half = 0; half < 2; ++half) {
-        __m256d d2 = zero;
-        for (a = 0; a < 3; ++a) {
-            const __m128 c0 = _mm_loadu_ps(&block->corner[a][4 * half]);
-            const __m128 c1 = _mm_loadu_ps(&block->corner[3 + a][4 * half]);
-            const __m128 c2 = _mm_loadu_ps(&block->corner[6 + a][4 * half]);
-            const __m256d lo = _mm256_cvtps_pd(_mm_min_ps(_mm_min_ps(c0, c1), c2));
-            const __m256d hi = _mm256_cvtps_pd(_mm_max_ps(_mm_max_ps(c0, c1), c2));
-            const __m256d y = _mm256_set1_pd((double)q[a]);
-            const __m256d d = _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(lo, y), _mm256_sub_pd(y, hi)), zero);
-            d2 = _mm256_add_pd(d2, _mm256_mul_pd(d, d));
-        }
-        _mm256_storeu_pd(bound + 4 * half, _mm256_mul_pd(_mm256_sqrt_pd(d2), slack));
-    }
-}
-#endif
-
-/* best updated with triangle id (key, instance in) at distance d, barycentrics (u, v), corners
-   world, when it comes before best in the (distance, key, triangle) order. */
-static KDRT__FORCEINLINE void kdrt__closest_offer(kdrt__closest_best *best, double d, double u,
-                                                  double v, uint32_t key, uint32_t id,
-                                                  const kdrt__instance *in, float world[3][3])
-{
-    if (best->found ? d < best->distance ||
-                          (d == best->distance &&
-                           (key < best->key || (key == best->key && id < best->triangle)))
-                    : (float)d <= best->limit) {
-        best->distance = d, best->u = u, best->v = v;
-        best->key = key, best->triangle = id, best->found = 1;
-        best->instance = in ? in->id : KDRT_INVALID_ID;
-        memcpy(best->corners, world, sizeof best->corners);
-        best->plane = 0;
-    }
-}
-
 /* Sets best's w to its point less q (the query's point in the world), for the supporting-plane
    bound; plane stays 0 when that is 0 or not finite. */
 static void kdrt__closest_plane(kdrt__closest_best *best, const float q[3])
@@ -6939,58 +6880,153 @@ static KDRT__FORCEINLINE double kdrt__plane_bound(const kdrt__block *block, uint
     return least > 0.0 ? least / (w_length * (1.0 + 3.552713678800501e-15)) : 0.0;
 }
 
+/* The bounds a leaf block's triangles are pruned by: for each lane, the distance from q to the
+   lane's box (its corners' box) and, when w_length > 0, the supporting-plane bound of
+   kdrt__plane_bound for w, the larger, times KDRT__PRUNE_SLACK, in double (a lane past the
+   leaf's count gives whatever its corners give, unused). y is q in double. */
+static void kdrt__block_bounds(const kdrt__block *block, const float q[3], const double y[3],
+                               const double w[3], double w_length, double bound[KDRT__LANES])
+{
+    uint32_t lane;
+    int a, k;
+    for (lane = 0; lane < KDRT__LANES; ++lane) {
+        double d2 = 0.0, b;
+        for (a = 0; a < 3; ++a) {
+            float lo = block->corner[a][lane], hi = lo;
+            double d;
+            for (k = 1; k < 3; ++k) {
+                const float c = block->corner[3 * k + a][lane];
+                lo = c < lo ? c : lo;
+                hi = c > hi ? c : hi;
+            }
+            d = q[a] < lo ? (double)lo - q[a] : (q[a] > hi ? (double)q[a] - hi : 0.0);
+            d2 += d * d;
+        }
+        b = sqrt(d2);
+        if (w_length > 0.0) {
+            const double p = kdrt__plane_bound(block, lane, y, w, w_length);
+            b = p > b ? p : b;
+        }
+        bound[lane] = b * KDRT__PRUNE_SLACK;
+    }
+}
+
+#ifdef KDRT__AVX2
+/* The same, 4 lanes at a time in double with AVX2: the same operations on the same values
+   (the corners widened exactly, one rounding a subtraction, product and sum, sqrt and the
+   division correctly rounded), so the same bounds bit for bit. */
+KDRT__TARGET_AVX2 static void kdrt__block_bounds_avx2(const kdrt__block *block, const float q[3],
+                                                      const double y[3], const double w[3],
+                                                      double w_length, double bound[KDRT__LANES])
+{
+    const __m256d zero = _mm256_setzero_pd(), slack = _mm256_set1_pd(KDRT__PRUNE_SLACK);
+    const __m256d sign = _mm256_set1_pd(-0.0), margin = _mm256_set1_pd(3.552713678800501e-15);
+    const __m256d length = _mm256_set1_pd(w_length * (1.0 + 3.552713678800501e-15));
+    int half, a, k;
+    for (half = 0; half < 2; ++half) {
+        __m256d d2 = zero, b;
+        for (a = 0; a < 3; ++a) {
+            const __m128 c0 = _mm_loadu_ps(&block->corner[a][4 * half]);
+            const __m128 c1 = _mm_loadu_ps(&block->corner[3 + a][4 * half]);
+            const __m128 c2 = _mm_loadu_ps(&block->corner[6 + a][4 * half]);
+            const __m256d lo = _mm256_cvtps_pd(_mm_min_ps(_mm_min_ps(c0, c1), c2));
+            const __m256d hi = _mm256_cvtps_pd(_mm_max_ps(_mm_max_ps(c0, c1), c2));
+            const __m256d yq = _mm256_set1_pd((double)q[a]);
+            const __m256d d =
+                _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(lo, yq), _mm256_sub_pd(yq, hi)), zero);
+            d2 = _mm256_add_pd(d2, _mm256_mul_pd(d, d));
+        }
+        b = _mm256_sqrt_pd(d2);
+        if (w_length > 0.0) {
+            __m256d least = _mm256_set1_pd(INFINITY), p;
+            for (k = 0; k < 3; ++k) {
+                __m256d t = zero, m = zero;
+                for (a = 0; a < 3; ++a) {
+                    const __m256d c =
+                        _mm256_cvtps_pd(_mm_loadu_ps(&block->corner[3 * k + a][4 * half]));
+                    const __m256d x =
+                        _mm256_mul_pd(_mm256_set1_pd(w[a]), _mm256_sub_pd(c, _mm256_set1_pd(y[a])));
+                    t = _mm256_add_pd(t, x), m = _mm256_add_pd(m, _mm256_andnot_pd(sign, x));
+                }
+                t = _mm256_sub_pd(t, _mm256_mul_pd(margin, m));
+                least = _mm256_min_pd(t, least); /* t < least ? t : least */
+            }
+            p = _mm256_and_pd(_mm256_div_pd(least, length), _mm256_cmp_pd(least, zero, _CMP_GT_OQ));
+            b = _mm256_max_pd(p, b); /* p > b ? p : b */
+        }
+        _mm256_storeu_pd(bound + 4 * half, _mm256_mul_pd(b, slack));
+    }
+}
+#endif
+
+/* best updated with triangle id (key, instance in) at distance d, barycentrics (u, v), corners
+   world, when it comes before best in the (distance, key, triangle) order. */
+static KDRT__FORCEINLINE void kdrt__closest_offer(kdrt__closest_best *best, double d, double u,
+                                                  double v, uint32_t key, uint32_t id,
+                                                  const kdrt__instance *in, float world[3][3])
+{
+    if (best->found ? d < best->distance ||
+                          (d == best->distance &&
+                           (key < best->key || (key == best->key && id < best->triangle)))
+                    : (float)d <= best->limit) {
+        best->distance = d, best->u = u, best->v = v;
+        best->key = key, best->triangle = id, best->found = 1;
+        best->instance = in ? in->id : KDRT_INVALID_ID;
+        memcpy(best->corners, world, sizeof best->corners);
+        best->plane = 0;
+    }
+}
+
 /* One tree's walk for a closest-point query: the nearer child first, the farther one on the stack
-   with its box; a node is skipped when its distance (in the tree's space, times scale, less
-   slop: a lower bound of the world distance of any triangle it holds, CLOSEST POINT AND OVERLAP)
-   exceeds the best so far. Its triangles get key and instance; mask against the parts' masks
-   (a scene's mesh tree: triangles compared as the tree numbers them, which is the (geometry ID,
-   triangle) order). A tree's own triangles (no instance) are pruned by their boxes' distances a
-   leaf block at a time (kdrt__block_bounds, 8 lanes at once with AVX2 when avx2 is set); an
-   instance's, carried into the world one by one, by their world boxes. Which triangles are
-   measured, and in which order, changes the work, never the answer: the best is the first in
-   the (distance, key, triangle) order whatever the order it is offered in. */
+   with its distances from the point along the axes (the split axis's from the split plane, the
+   others its parent's: the box distance as kdrt__box_distance finds it, bit for bit); a node is
+   skipped when its distance (in the tree's space, times scale, less slop: a lower bound of the
+   world distance of any triangle it holds, CLOSEST POINT AND OVERLAP) exceeds the best so far.
+   Its triangles get key and instance; mask against the parts' masks (a scene's mesh tree:
+   triangles compared as the tree numbers them, which is the (geometry ID, triangle) order). A
+   tree's own triangles (no instance) are pruned a leaf block at a time by the larger of their
+   boxes' distances and their supporting-plane bounds (kdrt__block_bounds, 8 lanes at once with
+   AVX2 when avx2 is set); an instance's, carried into the world one by one, by their world
+   boxes. Which triangles are measured, and in which order, changes the work, never the answer:
+   the best is the first in the (distance, key, triangle) order whatever the order it is offered
+   in. */
 static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, const kdrt__instance *in,
                                                       const double y[3], const float q[3],
                                                       double scale, double slop, uint32_t mask,
                                                       uint32_t key, kdrt__closest_best *best,
                                                       int avx2)
 {
-    kdrt__box_todo stack[KDRT_MAX_DEPTH + 1];
+    kdrt__point_todo stack[KDRT_MAX_DEPTH + 1];
     uint32_t sp = 0, node = 0, i, lane;
-    float lo[3], hi[3];
+    double off[3];
     const int check_mask = !tree->masks_full, plain = scale == 1.0 && slop == 0.0;
     int a;
     (void)avx2;
     if (tree->stats.triangles == 0) return;
-    for (a = 0; a < 3; ++a) lo[a] = tree->bounds.min[a], hi[a] = tree->bounds.max[a];
+    for (a = 0; a < 3; ++a) {
+        const double lo = tree->bounds.min[a], hi = tree->bounds.max[a];
+        off[a] = y[a] < lo ? lo - y[a] : (y[a] > hi ? y[a] - hi : 0.0);
+    }
     for (;;) {
+        const double d2 = 0.0 + off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
         int near_enough;
-        if (plain) {
-            /* The square of the distance, against the square of the best (a slack of 2^-38 on
-               the square, more than the 2^-40 of the distance less its rounding): no sqrt. */
-            double d2 = 0.0;
-            for (a = 0; a < 3; ++a) {
-                const double x = y[a] < lo[a] ? lo[a] - y[a] : (y[a] > hi[a] ? y[a] - hi[a] : 0.0);
-                d2 += x * x;
-            }
+        if (plain) /* the squares, with a slack of 2^-38 on d2 (more than 2^-40 on d): no sqrt */
             near_enough = !(d2 * (1.0 - 3.637978807091713e-12) > best->distance * best->distance);
-        } else {
-            const double bound = kdrt__box_distance(y, lo, hi) * scale - slop;
-            near_enough = !(bound * KDRT__PRUNE_SLACK > best->distance);
-        }
+        else
+            near_enough = !((sqrt(d2) * scale - slop) * KDRT__PRUNE_SLACK > best->distance);
         if (near_enough) {
             const kdrt__node *n = &tree->nodes[node];
             const uint32_t count = kdrt__node_count(n);
             if (!kdrt__node_is_leaf(n)) {
                 const uint32_t axis = kdrt__node_axis(n);
-                const float split = n->u.split;
+                const double split = n->u.split;
                 const int below = y[axis] <= split;
-                kdrt__box_todo *far = &stack[sp++];
+                kdrt__point_todo *far = &stack[sp++];
                 KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
-                for (a = 0; a < 3; ++a) far->lo[a] = lo[a], far->hi[a] = hi[a];
+                for (a = 0; a < 3; ++a) far->off[a] = off[a];
+                far->off[axis] = below ? split - y[axis] : y[axis] - split;
                 far->node = below ? kdrt__node_above(n) : node + 1;
-                if (below) far->lo[axis] = split, hi[axis] = split, node = node + 1;
-                else far->hi[axis] = split, lo[axis] = split, node = kdrt__node_above(n);
+                node = below ? node + 1 : kdrt__node_above(n);
                 continue;
             }
             if (!in) {
@@ -6998,22 +7034,19 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                     const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
                     const uint32_t lanes = count - i < KDRT__LANES ? count - i : KDRT__LANES;
                     double bounds[KDRT__LANES];
+                    double w_length = 0.0;
+                    if (best->found && best->plane == 0) kdrt__closest_plane(best, q);
+                    if (best->plane > 0) w_length = best->w_length;
 #ifdef KDRT__AVX2
-                    if (avx2) kdrt__block_bounds_avx2(block, q, bounds);
+                    if (avx2) kdrt__block_bounds_avx2(block, q, y, best->w, w_length, bounds);
                     else
 #endif
-                        kdrt__block_bounds(block, q, bounds);
+                        kdrt__block_bounds(block, q, y, best->w, w_length, bounds);
                     for (lane = 0; lane < lanes; ++lane) {
                         float world[3][3];
                         double d, u, v;
                         const uint32_t id = block->id[lane];
                         if (bounds[lane] > best->distance) continue;
-                        if (best->found && best->plane == 0) kdrt__closest_plane(best, q);
-                        if (best->plane > 0 &&
-                            kdrt__plane_bound(block, lane, y, best->w, best->w_length) *
-                                    KDRT__PRUNE_SLACK >
-                                best->distance)
-                            continue;
                         if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask)) continue;
                         for (a = 0; a < 9; ++a) world[a / 3][a % 3] = block->corner[a][lane];
                         d = kdrt__point_triangle(world, q, &u, &v);
@@ -7049,7 +7082,7 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
         if (sp == 0) return;
         --sp;
         node = stack[sp].node;
-        for (a = 0; a < 3; ++a) lo[a] = stack[sp].lo[a], hi[a] = stack[sp].hi[a];
+        for (a = 0; a < 3; ++a) off[a] = stack[sp].off[a];
     }
 }
 
