@@ -308,10 +308,16 @@ int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &cs
     auto emit = [&](const kb::PointsRow &row) {
         if (written) written = csv.line(kb::points_csv_row(row), write_error);
         char line[256];
-        std::snprintf(line, sizeof line, "%s %s %s%s: kdrt %.1f ms, Embree %.1f ms (%.2fx; CPU time %.2fx), mismatches %zu / %zu of %zu",
-                      row.mesh.c_str(), row.query.c_str(), row.kind.c_str(),
-                      row.query == "closest" ? "" : (" " + std::to_string(row.size)).c_str(), row.kdrt_ms, row.embree_ms,
-                      row.ratio, row.cpu_ratio, row.kdrt_mismatches, row.embree_mismatches, row.reference);
+        if (row.query == "closest")
+            std::snprintf(line, sizeof line,
+                          "%s closest %s: kdrt %.1f ms, Embree %.1f ms (%.2fx; CPU time %.2fx), "
+                          "disagreements %zu / %zu of %zu",
+                          row.mesh.c_str(), row.kind.c_str(), row.kdrt_ms, row.embree_ms, row.ratio, row.cpu_ratio,
+                          row.kdrt_mismatches, row.embree_mismatches, row.reference);
+        else
+            std::snprintf(line, sizeof line, "%s %s %g%%: kdrt %.1f ms, %llu triangles, disagreements %zu of %zu",
+                          row.mesh.c_str(), row.query.c_str(), 100 * row.size, row.kdrt_ms,
+                          (unsigned long long)row.found, row.kdrt_mismatches, row.reference);
         progress.status(line);
     };
     for (const Input &in : inputs) {

@@ -109,13 +109,20 @@ double point_triangle_distance(const double p[3], const double a[3], const doubl
     return at(q);
 }
 
+bool zero_area(const double c[3][3]) {
+    double e1[3], e2[3];
+    for (int a = 0; a < 3; ++a) e1[a] = c[1][a] - c[0][a], e2[a] = c[2][a] - c[0][a];
+    // Each component of e1 x e2 is 0 when its two products are equal (no fused multiply-add).
+    return e1[1] * e2[2] == e1[2] * e2[1] && e1[2] * e2[0] == e1[0] * e2[2] && e1[0] * e2[1] == e1[1] * e2[0];
+}
+
 double brute_closest_distance(const common::Mesh &mesh, const float p[3]) {
     const double q[3] = {p[0], p[1], p[2]};
     double best = INFINITY;
     for (uint32_t t = 0, n = mesh.triangle_count(); t < n; ++t) {
         double c[3][3];
         mesh.corners(t, c);
-        best = std::min(best, point_triangle_distance(q, c[0], c[1], c[2]));
+        if (!zero_area(c)) best = std::min(best, point_triangle_distance(q, c[0], c[1], c[2]));
     }
     return best;
 }
@@ -126,7 +133,7 @@ uint64_t brute_sphere_count(const common::Mesh &mesh, const float center[3], flo
     for (uint32_t t = 0, n = mesh.triangle_count(); t < n; ++t) {
         double c[3][3];
         mesh.corners(t, c);
-        count += point_triangle_distance(q, c[0], c[1], c[2]) <= radius;
+        count += !zero_area(c) && point_triangle_distance(q, c[0], c[1], c[2]) <= radius;
     }
     return count;
 }

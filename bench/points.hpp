@@ -28,10 +28,17 @@ double mesh_diagonal(const common::Mesh &mesh);
 // Collision Detection 5.1.5).
 double point_triangle_distance(const double p[3], const double a[3], const double b[3], const double c[3]);
 
-// The brute force: the distance from p to the nearest triangle of mesh, every triangle in double.
+// Whether the triangle with corners c (floats, widened) has zero area as kdrt's build decides it:
+// the edges' cross product, in double, exactly 0. kdrt leaves those out of its trees, so the
+// brute forces below leave them out too.
+bool zero_area(const double c[3][3]);
+
+// The brute force: the distance from p to the nearest triangle of mesh (zero-area ones left
+// out), every triangle in double.
 double brute_closest_distance(const common::Mesh &mesh, const float p[3]);
 
-// The brute force of an overlap query: the triangles of mesh within radius of center (in double).
+// The brute force of an overlap query: the triangles of mesh (zero-area ones left out) within
+// radius of center, in double.
 uint64_t brute_sphere_count(const common::Mesh &mesh, const float center[3], float radius);
 
 // A distance d disagrees with the reference ref when |d - ref| exceeds kDistanceTolerance times
