@@ -7008,12 +7008,12 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
         off[a] = y[a] < lo ? lo - y[a] : (y[a] > hi ? y[a] - hi : 0.0);
     }
     for (;;) {
-        const double d2 = 0.0 + off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
+        const double box2 = 0.0 + off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
         int near_enough;
-        if (plain) /* the squares, with a slack of 2^-38 on d2 (more than 2^-40 on d): no sqrt */
-            near_enough = !(d2 * (1.0 - 3.637978807091713e-12) > best->distance * best->distance);
+        if (plain) /* the squares, with a slack of 2^-38 on box2 (more than 2^-40 on its root) */
+            near_enough = !(box2 * (1.0 - 3.637978807091713e-12) > best->distance * best->distance);
         else
-            near_enough = !((sqrt(d2) * scale - slop) * KDRT__PRUNE_SLACK > best->distance);
+            near_enough = !((sqrt(box2) * scale - slop) * KDRT__PRUNE_SLACK > best->distance);
         if (near_enough) {
             const kdrt__node *n = &tree->nodes[node];
             const uint32_t count = kdrt__node_count(n);
