@@ -241,6 +241,7 @@ std::string usage() {
            "       kdrt-bench --scene merged,field [options] [MESH ...]\n"
            "       kdrt-bench --scene frames [options] [MESH ...]\n"
            "       kdrt-bench --save-load [--repeat N] [--subdivide K] [MESH_OR_FOLDER ...]\n"
+           "       kdrt-bench --points [options] [MESH_OR_FOLDER ...]\n"
            "\n"
            "Builds kdrt's default kd-tree (SAH builder, default quality, max leaf size 4) over each\n"
            "mesh and traces the benchmark frame: the mesh scaled to fill the view in front of a\n"
@@ -325,6 +326,12 @@ std::string usage() {
            "                      separated by a comma: a row for each, named in the last column\n"
            "  --accuracy          speed beside error counts for each intersector (see below)\n"
            "  --save-load         saved trees: build, save and load timed side by side (see below)\n"
+           "  --points            closest-point queries (kdrt_closest_point against Embree's\n"
+           "                      rtcPointQuery) from points near the surface, inside the mesh's\n"
+           "                      box and far outside it, and overlap queries (kdrt_overlap_box,\n"
+           "                      kdrt_overlap_sphere) by size, one thread (see below)\n"
+           "  --queries N         with --points: closest-point queries per kind of point (default\n"
+           "                      100000; overlap queries: a hundredth of that per size)\n"
            "  --scene LIST        merged, field or both: kdrt_scene against one tree; or frames:\n"
            "                      a game's frames against Embree (see below)\n"
            "  --instances N       with --scene field: instances in the field (default 1000); with\n"
@@ -359,6 +366,20 @@ std::string usage() {
            "for the same rays started exactly at the hit point, with no offset.\n"
            "--sweep, --leaf-sizes, --rays, --compare, --sah-costs, --quality, --query, --start,\n"
            "--batch, --batch-size, --tile, --shuffle and --kernel do not apply.\n"
+           "\n"           "--points builds kdrt's default tree (and Embree's MEDIUM BVH, with --compare embree)\n"
+           "over each mesh and times, interleaved --repeat times (default 5; the medians kept),\n"
+           "kdrt_closest_point and rtcPointQuery with the closest-point callback of Embree's\n"
+           "tutorial on the same seeded points of each kind, then kdrt_overlap_box and\n"
+           "kdrt_overlap_sphere around points near the surface, boxes and balls 1%, 3% and 10%\n"
+           "of the mesh's box across. It writes Mesh;Triangles;Query;Kind;Size;Queries;KdrtMs;\n"
+           "EmbreeMs;Ratio;Found;ReferenceQueries;KdrtMismatches;EmbreeMismatches;KdrtMaxError;\n"
+           "EmbreeMaxError;Repeat;KdrtCpuMs;EmbreeCpuMs;CpuRatio, a row per mesh, query and kind\n"
+           "or size; Ratio is EmbreeMs over KdrtMs, CpuRatio the same of the querying thread's CPU\n"
+           "time. The first --reference-rays queries of each (default 1000, 100 for overlap)\n"
+           "are checked against a double-precision brute force: a distance disagrees when it is\n"
+           "off by more than 2^-20 of (the distance + the mesh box's diagonal), a ball's count\n"
+           "when it differs. Only --repeat, --queries, --reference-rays, --subdivide, --compare,\n"
+           "--build-threads, -o and --quiet apply.\n"
            "\n"
            "--scene merged,field measures kdrt_scene against one tree over the same triangles,\n"
            "with primary and diffuse rays (the frame's, made on the one tree) through both:\n"
@@ -416,6 +437,8 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
     bool frames_given = false, spacing_given = false, threads_given = false;
     bool batch_given = false, batch_size_given = false, tile_given = false;
     std::string not_save_load_option;  // the last option that --save-load has no use for
+    bool queries_given = false, reference_given = false;
+    std::string points_refused;  // the last option that --points has no use for
     for (int i = 1; i < argc; ++i) {
         std::string arg = argv[i];
         if (!arg.empty() && arg[0] == '-' && arg != "--save-load" && arg != "--repeat" && arg != "--subdivide" &&
@@ -443,6 +466,13 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         if (arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing") field_option = arg;
         if (arg == "--instance-spacing") spacing_given = true;
         threads_given = threads_given || arg == "--threads";
+        reference_given = reference_given || arg == "--reference-rays";
+        if (arg == "--leaf-sizes" || arg == "--rays" || arg == "--sah-costs" || arg == "--quality" || arg == "--query" ||
+            arg == "--start" || arg == "--builder" || arg == "--intersector" || arg == "--hard-rays" || arg == "--sweep" ||
+            arg == "--kernel" || arg == "--threads" || arg == "--size" || arg == "--accuracy" || arg == "--scene" ||
+            arg == "--instances" || arg == "--instance-triangles" || arg == "--instance-spacing" || arg == "--frames" ||
+            ray_order_option)
+            points_refused = arg;
         repeat_given = repeat_given || arg == "--repeat";
         size_given = size_given || arg == "--size";
         if (arg == "--help" || arg == "-h") {
@@ -451,6 +481,16 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
             out.accuracy = true;
         } else if (arg == "--save-load") {
             out.save_load = true;
+        } else if (arg == "--points") {
+            out.points = true;
+        } else if (arg == "--queries") {
+            if (!value(v)) return false;
+            if (!common::parse_count(v, 1ull << 30, n) || n == 0) {
+                error = "--queries wants a whole number from 1, got '" + v + "'";
+                return false;
+            }
+            out.point_queries = size_t(n);
+            queries_given = true;
         } else if (arg == "--sweep") {
             out.sweep = true;
         } else if (arg == "--quiet" || arg == "-q") {
@@ -666,6 +706,19 @@ bool parse_options(int argc, const char *const *argv, Options &out, std::string 
         }
         if (!repeat_given) out.repeat = 7;
         return true;
+    }
+    if (out.points) {
+        if (!points_refused.empty()) {
+            error = points_refused + " does not apply to --points (kdrt's default tree, one thread; see --help)";
+            return false;
+        }
+        if (!repeat_given) out.repeat = 5;
+        if (!reference_given) out.reference_rays = 1000;
+        return true;
+    }
+    if (queries_given) {
+        error = "--queries applies only to --points";
+        return false;
     }
     // What the leaf-size CSV builds when not told: kdrt's default tree, or with --sweep the
     // original's run.

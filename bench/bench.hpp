@@ -74,6 +74,11 @@ struct Options {
     // --save-load: build (FAST and the default quality), save and load (copied, in place) timed
     // side by side on each mesh (saved_trees.hpp), not leaf sizes
     bool save_load = false;
+    // --points: closest-point and overlap queries (points.hpp), --queries closest-point queries
+    // per kind of point (a hundredth of that per overlap size); --reference-rays checks that many of
+    // each against the brute force (1000 unless given).
+    bool points = false;
+    size_t point_queries = 100000;
     size_t hard_rays = 20000;          // --accuracy: rays per watertight and per hard-case set
     // --scene: "merged" and/or "field", in the order given (scenes.hpp), or "frames" alone
     // (frames.hpp); empty: not the scene mode.

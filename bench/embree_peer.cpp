@@ -46,6 +46,12 @@ double PeerScene::median_commit_ms(const SceneLayout &, unsigned) { return 0; }
 
 double PeerScene::trace(const std::vector<kdrt_ray> &, unsigned, std::vector<kdrt_hit> &) const { return 0; }
 
+struct PeerPoints::State {};
+PeerPoints::PeerPoints() = default;
+PeerPoints::~PeerPoints() = default;
+bool PeerPoints::build(const common::Mesh &, unsigned, std::string &error) { return build_mesh_unavailable(error); }
+double PeerPoints::closest(const std::vector<float> &, std::vector<float> &, std::vector<uint32_t> &) const { return 0; }
+
 struct PeerFrames::State {};
 PeerFrames::PeerFrames() = default;
 PeerFrames::~PeerFrames() = default;
@@ -418,6 +424,127 @@ double PeerScene::trace(const std::vector<kdrt_ray> &rays, unsigned threads, std
     hits.resize(rays.size());
     RTCScene scene = state_->scene;
     return common::timed_parallel(rays.size(), threads, [&](size_t i) { hits[i] = intersect(scene, rays[i]); });
+}
+
+struct PeerPoints::State {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;
+    const common::Mesh *mesh = nullptr;
+    ~State() {
+        if (scene) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+};
+
+PeerPoints::PeerPoints() : state_(new State) {}
+PeerPoints::~PeerPoints() = default;
+
+bool PeerPoints::build(const common::Mesh &mesh, unsigned build_threads, std::string &error) {
+    state_.reset(new State);
+    State &s = *state_;
+    s.mesh = &mesh;
+    const std::string config = "threads=" + std::to_string(build_threads);
+    s.device = rtcNewDevice(config.c_str());
+    if (!s.device) {
+        error = "rtcNewDevice failed";
+        return false;
+    }
+    s.scene = rtcNewScene(s.device);
+    rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_MEDIUM);
+    RTCGeometry g = new_triangle_geometry(s.device, mesh.view(), RTC_BUILD_QUALITY_MEDIUM);
+    if (!g) {
+        error = "Embree could not allocate its buffers";
+        return false;
+    }
+    rtcAttachGeometryByID(s.scene, g, 0);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(s.scene);
+    if (rtcGetDeviceError(s.device) != RTC_ERROR_NONE) {
+        error = "Embree failed to build the scene";
+        return false;
+    }
+    return true;
+}
+
+namespace {
+
+struct P3 {
+    float x, y, z;
+};
+inline P3 operator-(P3 a, P3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline P3 operator+(P3 a, P3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline P3 operator*(float s, P3 a) { return {s * a.x, s * a.y, s * a.z}; }
+inline float dot(P3 a, P3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+// The closest_point tutorial's closestPointTriangle (Ericson, Real-Time Collision Detection
+// 5.1.5), in float as there.
+P3 closest_point_triangle(P3 p, P3 a, P3 b, P3 c) {
+    const P3 ab = b - a, ac = c - a, ap = p - a;
+    const float d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0.f && d2 <= 0.f) return a;
+    const P3 bp = p - b;
+    const float d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0.f && d4 <= d3) return b;
+    const float vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.f && d1 >= 0.f && d3 <= 0.f) return a + (d1 / (d1 - d3)) * ab;
+    const P3 cp = p - c;
+    const float d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0.f && d5 <= d6) return c;
+    const float vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.f && d2 >= 0.f && d6 <= 0.f) return a + (d2 / (d2 - d6)) * ac;
+    const float va = d3 * d6 - d5 * d4;
+    if (va <= 0.f && (d4 - d3) >= 0.f && (d5 - d6) >= 0.f) return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b);
+    const float denom = 1.f / (va + vb + vc), v = vb * denom, w = vc * denom;
+    return a + v * ab + w * ac;
+}
+
+struct PointResult {
+    const common::Mesh *mesh;
+    float distance;
+    uint32_t triangle;
+};
+
+// The tutorial's closestPointFunc, without instances (one level): the nearest point of the
+// triangle, and the query's radius shrunk to its distance when it is nearer.
+bool closest_point_func(RTCPointQueryFunctionArguments *args) {
+    PointResult *result = static_cast<PointResult *>(args->userPtr);
+    const common::Mesh &m = *result->mesh;
+    const float *v = m.positions.data();
+    const uint32_t t = args->primID;
+    const uint32_t i0 = m.vertex(t, 0), i1 = m.vertex(t, 1), i2 = m.vertex(t, 2);
+    const P3 a{v[3 * i0], v[3 * i0 + 1], v[3 * i0 + 2]}, b{v[3 * i1], v[3 * i1 + 1], v[3 * i1 + 2]},
+        c{v[3 * i2], v[3 * i2 + 1], v[3 * i2 + 2]};
+    const P3 q{args->query->x, args->query->y, args->query->z};
+    const P3 d = q - closest_point_triangle(q, a, b, c);
+    const float distance = std::sqrt(dot(d, d));
+    if (distance < args->query->radius) {
+        args->query->radius = distance;
+        result->distance = distance;
+        result->triangle = t;
+        return true;  // the radius changed
+    }
+    return false;
+}
+
+}  // namespace
+
+double PeerPoints::closest(const std::vector<float> &points, std::vector<float> &distance,
+                           std::vector<uint32_t> &triangle) const {
+    const size_t n = points.size() / 3;
+    distance.assign(n, INFINITY);
+    triangle.assign(n, KDRT_INVALID_ID);
+    RTCScene scene = state_->scene;
+    const common::Mesh *mesh = state_->mesh;
+    return common::timed_parallel(n, 1, [&](size_t i) {
+        RTCPointQuery query;
+        query.x = points[3 * i], query.y = points[3 * i + 1], query.z = points[3 * i + 2];
+        query.time = 0.f, query.radius = INFINITY;
+        RTCPointQueryContext context;
+        rtcInitPointQueryContext(&context);
+        PointResult result{mesh, INFINITY, KDRT_INVALID_ID};
+        rtcPointQuery(scene, &query, &context, closest_point_func, &result);
+        distance[i] = result.distance, triangle[i] = result.triangle;
+    });
 }
 
 struct PeerFrames::State {

@@ -69,6 +69,28 @@ private:
     double build_ms_ = 0;
 };
 
+// kdrt-bench --points's Embree: one triangle geometry (MEDIUM, a device of build_threads
+// threads) and rtcPointQuery with the closest-point callback of Embree's closest_point
+// tutorial: the nearest point of the triangle (Ericson's regions, in float), the query's radius
+// shrunk to its distance when nearer.
+class PeerPoints {
+public:
+    PeerPoints();
+    ~PeerPoints();
+    PeerPoints(const PeerPoints &) = delete;
+    PeerPoints &operator=(const PeerPoints &) = delete;
+
+    // Keeps a pointer to mesh, which must outlive the queries.
+    bool build(const common::Mesh &mesh, unsigned build_threads, std::string &error);
+    // rtcPointQuery from each point (x, y, z each), radius infinite, on one thread: the distance
+    // (INFINITY when none) and the triangle of each. The wall time in ms.
+    double closest(const std::vector<float> &points, std::vector<float> &distance, std::vector<uint32_t> &triangle) const;
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
 struct FramesWorld;
 
 // kdrt-bench --scene frames's Embree (bench/README.md, "Frames"): the world as kdrt has it, a

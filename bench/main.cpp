@@ -9,6 +9,7 @@
 #include "embree_peer.hpp"
 #include "frames.hpp"
 #include "saved_trees.hpp"
+#include "points.hpp"
 #include "scenes.hpp"
 #include "oracle/hard_cases.hpp"
 #include "oracle/reference.hpp"
@@ -289,6 +290,161 @@ int run_accuracy(const kb::Options &opt, const std::vector<Input> &inputs, const
 // --scene: a tree and a scene, freed when they go out of scope.
 using TreePtr = std::unique_ptr<kdrt_tree, decltype(&kdrt_tree_free)>;
 using ScenePtr = std::unique_ptr<kdrt_scene, decltype(&kdrt_scene_free)>;
+
+// The median of xs (not empty).
+double median_of(std::vector<double> xs) {
+    std::sort(xs.begin(), xs.end());
+    const size_t n = xs.size();
+    return n % 2 ? xs[n / 2] : 0.5 * (xs[n / 2 - 1] + xs[n / 2]);
+}
+
+// --points: closest-point queries of each kind against Embree's rtcPointQuery, then overlap
+// queries by size, a CSV row each (bench/README.md, "Closest point and overlap").
+int run_points(const kb::Options &opt, const std::vector<Input> &inputs, Csv &csv, Progress &progress, int failures) {
+    const uint64_t seed = 1;
+    const double sizes[] = {0.01, 0.03, 0.1};
+    std::string error, write_error;
+    bool written = csv.line(kb::points_csv_header(), write_error);
+    progress.total = inputs.size() * (std::size(kb::kPointKinds) + 2 * std::size(sizes));
+    auto emit = [&](const kb::PointsRow &row) {
+        if (written) written = csv.line(kb::points_csv_row(row), write_error);
+        char line[256];
+        if (row.query == "closest")
+            std::snprintf(line, sizeof line,
+                          "%s closest %s: kdrt %.1f ms, Embree %.1f ms (%.2fx; CPU time %.2fx), "
+                          "disagreements %zu / %zu of %zu",
+                          row.mesh.c_str(), row.kind.c_str(), row.kdrt_ms, row.embree_ms, row.ratio, row.cpu_ratio,
+                          row.kdrt_mismatches, row.embree_mismatches, row.reference);
+        else
+            std::snprintf(line, sizeof line, "%s %s %g%%: kdrt %.1f ms, %llu triangles, disagreements %zu of %zu",
+                          row.mesh.c_str(), row.query.c_str(), 100 * row.size, row.kdrt_ms,
+                          (unsigned long long)row.found, row.kdrt_mismatches, row.reference);
+        progress.status(line);
+    };
+    for (const Input &in : inputs) {
+        if (!written) break;
+        const kdrt_triangles view = in.mesh.view();
+        kdrt_tree *raw = nullptr;
+        const kdrt_result r = kdrt_tree_build(&view, nullptr, &raw, nullptr);
+        TreePtr tree(raw, kdrt_tree_free);
+        if (r != KDRT_SUCCESS) {
+            progress.note("kdrt-bench: " + in.label + ": the tree: " + kdrt_result_string(r));
+            ++failures;
+            continue;
+        }
+        kb::PeerPoints peer;
+        if (opt.compare_embree && !peer.build(in.mesh, opt.build_threads, error)) {
+            progress.note("kdrt-bench: " + in.label + ": Embree: " + error);
+            ++failures;
+            continue;
+        }
+        const double diagonal = kb::mesh_diagonal(in.mesh);
+        const kdrt_aabb box = kdrt_tree_bounds(tree.get());
+        for (kb::PointKind kind : kb::kPointKinds) {
+            if (!written) break;
+            progress.step(in.label + ": closest point from " + std::to_string(opt.point_queries) + " " +
+                          kb::point_kind_name(kind) + " points");
+            const std::vector<float> points = kb::make_points(in.mesh, kind, opt.point_queries, seed);
+            const size_t n = opt.point_queries;
+            std::vector<kdrt_closest> answers(n);
+            std::vector<float> peer_distance;
+            std::vector<uint32_t> peer_triangle;
+            std::vector<double> kdrt_ms, peer_ms, kdrt_cpu, peer_cpu;
+            for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                auto run_kdrt = [&] {
+                    const double cpu = kb::thread_cpu_ms();
+                    kdrt_ms.push_back(common::timed_parallel(n, 1, [&](size_t i) {
+                        kdrt_closest_point(tree.get(), &points[3 * i], INFINITY, &answers[i]);
+                    }));
+                    kdrt_cpu.push_back(kb::thread_cpu_ms() - cpu);
+                };
+                auto run_peer = [&] {
+                    if (!opt.compare_embree) return;
+                    const double cpu = kb::thread_cpu_ms();
+                    peer_ms.push_back(peer.closest(points, peer_distance, peer_triangle));
+                    peer_cpu.push_back(kb::thread_cpu_ms() - cpu);
+                };
+                if (rep % 2) run_peer(), run_kdrt();  // in turns: neither always runs first
+                else run_kdrt(), run_peer();
+            }
+            kb::PointsRow row;
+            row.mesh = in.label, row.triangles = in.mesh.triangle_count(), row.query = "closest";
+            row.kind = kb::point_kind_name(kind), row.queries = n, row.repeat = opt.repeat;
+            row.kdrt_ms = median_of(kdrt_ms);
+            row.embree_ms = peer_ms.empty() ? 0 : median_of(peer_ms);
+            row.ratio = peer_ms.empty() ? 0 : row.embree_ms / row.kdrt_ms;
+            row.kdrt_cpu_ms = median_of(kdrt_cpu);
+            row.embree_cpu_ms = peer_cpu.empty() ? 0 : median_of(peer_cpu);
+            row.cpu_ratio = peer_cpu.empty() ? 0 : row.embree_cpu_ms / row.kdrt_cpu_ms;
+            for (const kdrt_closest &a : answers) row.found += a.triangle != KDRT_INVALID_ID;
+            row.reference = std::min(n, opt.reference_rays == 0 ? n : opt.reference_rays);
+            for (size_t i = 0; i < row.reference; ++i) {
+                const double ref = kb::brute_closest_distance(in.mesh, &points[3 * i]);
+                const double e = kb::distance_error(answers[i].distance, ref, diagonal);
+                row.kdrt_max_error = std::max(row.kdrt_max_error, e);
+                row.kdrt_mismatches += !(e <= kb::kDistanceTolerance);
+                if (!peer_ms.empty()) {
+                    const double pe = kb::distance_error(peer_distance[i], ref, diagonal);
+                    row.embree_max_error = std::max(row.embree_max_error, pe);
+                    row.embree_mismatches += !(pe <= kb::kDistanceTolerance);
+                }
+            }
+            emit(row);
+        }
+        // Overlap: boxes and balls around points near the surface, a hundredth as many queries.
+        const size_t n = std::max<size_t>(1, opt.point_queries / 100);
+        const std::vector<float> centres = kb::make_points(in.mesh, kb::PointKind::surface, n, seed + 1);
+        for (int sphere = 0; sphere < 2 && written; ++sphere)
+            for (double size : sizes) {
+                if (!written) break;
+                progress.step(in.label + ": " + std::to_string(n) + (sphere ? " balls " : " boxes ") +
+                              std::to_string(size) + " of the box across");
+                std::vector<uint64_t> counts(n);
+                std::vector<double> ms, cpu_ms;
+                const float radius = float(0.5 * size * diagonal);
+                float half[3];
+                for (int a = 0; a < 3; ++a) half[a] = float(0.5 * size * (double(box.max[a]) - box.min[a]));
+                for (unsigned rep = 0; rep < opt.repeat; ++rep) {
+                    const double cpu = kb::thread_cpu_ms();
+                    ms.push_back(common::timed_parallel(n, 1, [&](size_t i) {
+                        const float *c = &centres[3 * i];
+                        if (sphere) {
+                            kdrt_overlap_sphere(tree.get(), c, radius, nullptr, nullptr, &counts[i]);
+                        } else {
+                            kdrt_aabb b;
+                            for (int a = 0; a < 3; ++a) b.min[a] = c[a] - half[a], b.max[a] = c[a] + half[a];
+                            kdrt_overlap_box(tree.get(), &b, nullptr, nullptr, &counts[i]);
+                        }
+                    }));
+                    cpu_ms.push_back(kb::thread_cpu_ms() - cpu);
+                }
+                kb::PointsRow row;
+                row.mesh = in.label, row.triangles = in.mesh.triangle_count(), row.query = sphere ? "sphere" : "box";
+                row.kind = "surface", row.size = size, row.queries = n, row.repeat = opt.repeat;
+                row.kdrt_ms = median_of(ms);
+                row.kdrt_cpu_ms = median_of(cpu_ms);
+                for (uint64_t c : counts) row.found += c;
+                if (sphere) {  // the balls' counts against the brute force
+                    const size_t limit = opt.reference_rays == 0 ? n : std::max<size_t>(1, opt.reference_rays / 10);
+                    row.reference = std::min(n, limit);
+                    for (size_t i = 0; i < row.reference; ++i)
+                        row.kdrt_mismatches += kb::brute_sphere_count(in.mesh, &centres[3 * i], radius) != counts[i];
+                }
+                emit(row);
+            }
+    }
+    if (!written) {
+        progress.note("kdrt-bench: " + write_error);
+        return 1;
+    }
+    if (failures) progress.note("kdrt-bench: " + std::to_string(failures) + " input(s) failed; see above");
+    if (!csv.finish(error)) {
+        progress.note("kdrt-bench: " + error);
+        return 1;
+    }
+    return failures ? 1 : 0;
+}
+
 
 // One way of tracing a scene's rays, timed in every pass.
 struct SceneVariant {
@@ -1018,6 +1174,7 @@ int run(int argc, char **argv) {
     if (opt.save_load) return run_save_load(opt, inputs, csv, progress, failures);
     const std::vector<kdrt_intersector> intersectors = kb::intersectors_for(opt);
     if (opt.accuracy) return run_accuracy(opt, inputs, intersectors, csv, progress, failures);
+    if (opt.points) return run_points(opt, inputs, csv, progress, failures);
 
     const std::vector<kb::BuildVariant> variants = kb::build_variants(opt);
     // Embree at LOW quality beside kdrt's FAST builds, at MEDIUM beside the others.

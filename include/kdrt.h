@@ -650,8 +650,10 @@ typedef enum kdrt_result {
                                       (a truncated file, or bytes after its end) */
     KDRT_ERROR_FILE_CORRUPT,       /* a header or section field that no save writes: a damaged
                                       or forged file */
-    KDRT_ERROR_MESH_MISMATCH       /* the meshes given are not those the tree was saved over
+    KDRT_ERROR_MESH_MISMATCH,      /* the meshes given are not those the tree was saved over
                                       (counts, or the hash of positions and indices) */
+    KDRT_ERROR_INVALID_QUERY       /* a closest-point or overlap query's point, box, radius or
+                                      distance is NaN, infinite or negative where it may not be */
 } kdrt_result;
 
 typedef struct kdrt_aabb {
@@ -1180,6 +1182,64 @@ KDRT_API kdrt_result kdrt_scene_load(const kdrt_geometry *geometries, uint32_t c
                                      const void *bytes, size_t size,
                                      const kdrt_build_options *options, kdrt_scene **out_scene,
                                      kdrt_build_report *report);
+
+/* ==== closest point and overlap (see CLOSEST POINT AND OVERLAP): beyond rays ==== */
+
+/* The answer of a closest-point query. */
+typedef struct kdrt_closest {
+    float point[3];    /* the nearest point of the triangle, in the world for a scene */
+    float distance;    /* from the query's point to the triangle (see the manual's bound) */
+    float u, v;        /* barycentrics of point: (1 - u - v) p0 + u p1 + v p2 */
+    uint32_t triangle; /* as kdrt_hit.triangle; KDRT_INVALID_ID when nothing is within reach */
+    uint32_t geometry; /* as kdrt_hit.geometry: a scene's entry; 0 for a tree */
+    uint32_t instance; /* as kdrt_hit.instance: the instance's ID, or KDRT_INVALID_ID */
+} kdrt_closest;
+
+/* A triangle an overlap query found: as kdrt_hit names it. */
+typedef struct kdrt_overlap {
+    uint32_t triangle; /* index in its mesh (an instance's: in its tree's mesh) */
+    uint32_t geometry; /* a scene's entry; 0 for a tree */
+    uint32_t instance; /* the instance's ID, or KDRT_INVALID_ID */
+} kdrt_overlap;
+
+/* Called once for each triangle an overlap query finds, in no particular order, on the querying
+   thread: nonzero to go on, 0 to stop the query there. It may run other queries (on this tree or
+   scene too); it must not free, rebuild or change what is queried. */
+typedef int (*kdrt_overlap_fn)(void *user, const kdrt_overlap *found);
+
+/* The nearest point of any triangle of tree to point, within max_distance (INFINITY: anywhere;
+   0: only triangles through point). Equal distances go to the lower triangle index. Returns
+   KDRT_SUCCESS with out->triangle = KDRT_INVALID_ID (and distance INFINITY) when no triangle is
+   within max_distance; KDRT_ERROR_NULL_ARGUMENT for a NULL argument, and
+   KDRT_ERROR_INVALID_QUERY for a NaN or infinite point or a NaN or negative max_distance
+   (out->triangle is then KDRT_INVALID_ID too). Allocates nothing; const tree, any threads. */
+KDRT_API kdrt_result kdrt_closest_point(const kdrt_tree *tree, const float point[3],
+                                        float max_distance, kdrt_closest *out);
+/* Calls callback (when not NULL) once for every triangle of tree that meets the closed box, and
+   puts how many that was in *out_count (which may be NULL): the callback's last triangle counts
+   when it stops the query. A box with min > max on an axis is empty (0 triangles); a flat box
+   (min == max) is a rectangle, a segment or a point; an infinite bound is a half-space.
+   KDRT_ERROR_INVALID_QUERY for a NaN bound, KDRT_ERROR_NULL_ARGUMENT for a NULL tree or box. */
+KDRT_API kdrt_result kdrt_overlap_box(const kdrt_tree *tree, const kdrt_aabb *box,
+                                      kdrt_overlap_fn callback, void *user, uint64_t *out_count);
+/* The same for the closed ball of radius (0: the point itself; INFINITY: every triangle) around
+   center. KDRT_ERROR_INVALID_QUERY for a NaN or infinite center or a NaN or negative radius. */
+KDRT_API kdrt_result kdrt_overlap_sphere(const kdrt_tree *tree, const float center[3],
+                                         float radius, kdrt_overlap_fn callback, void *user,
+                                         uint64_t *out_count);
+/* The three on a scene: every enabled geometry whose mask shares a bit with mask (0xFFFFFFFF:
+   all of them), instances included, distances and shapes in the world. Closest point: equal
+   distances go to the lower geometry ID, then the lower triangle. */
+KDRT_API kdrt_result kdrt_scene_closest_point(const kdrt_scene *scene, const float point[3],
+                                              float max_distance, uint32_t mask,
+                                              kdrt_closest *out);
+KDRT_API kdrt_result kdrt_scene_overlap_box(const kdrt_scene *scene, const kdrt_aabb *box,
+                                            uint32_t mask, kdrt_overlap_fn callback, void *user,
+                                            uint64_t *out_count);
+KDRT_API kdrt_result kdrt_scene_overlap_sphere(const kdrt_scene *scene, const float center[3],
+                                               float radius, uint32_t mask,
+                                               kdrt_overlap_fn callback, void *user,
+                                               uint64_t *out_count);
 
 /* ==== optics (see OPTICS): reflection, refraction, Fresnel reflectance, the medium stack ==== */
 
@@ -1773,6 +1833,8 @@ KDRT_API const char *kdrt_result_string(kdrt_result result)
         return "a saved tree with a field no save writes (damaged or forged)";
     case KDRT_ERROR_MESH_MISMATCH:
         return "the meshes given are not those the tree was saved over (counts or hash differ)";
+    case KDRT_ERROR_INVALID_QUERY:
+        return "a query's point, box, radius or distance is NaN, infinite or negative where it may not be";
     }
     return "unknown kdrt_result";
 }
@@ -7649,6 +7711,1151 @@ KDRT_API int kdrt_scene_spawn_ray(const kdrt_scene *scene, const kdrt_hit *hit, 
 KDRT_API uint32_t kdrt_scene_locate(const kdrt_scene *scene, const float point[3])
 {
     return scene ? kdrt_locate(scene->meshes, point) : 0;
+}
+
+/* ==== closest point and overlap: exact signs, the distance to a triangle, the walks ==== */
+
+/* -- Exact signs of sums of exact doubles (CLOSEST POINT AND OVERLAP) -- */
+
+/* a + b = *s + *e exactly (Knuth's TwoSum, for round to nearest without overflow). */
+static void kdrt__two_sum(double a, double b, double *s, double *e)
+{
+    const double x = a + b, bv = x - a, av = x - bv;
+    *s = x;
+    *e = (a - av) + (b - bv);
+}
+
+/* The sign (-1, 0 or 1) of t[0] + ... + t[n - 1], each term an exact double (a product of two
+   floats, or a part of one of three), n at most KDRT__SUM_MAX. The sum in double decides when it
+   is farther from 0 than its rounding error can reach ((n - 1) 2^-53 of the sum of the
+   magnitudes, bounded by n 2^-52); otherwise the terms are summed exactly, by Shewchuk's
+   grow-expansion (1997), into components that do not overlap, in increasing magnitude, and the
+   largest nonzero one has the sum's sign. Terms up to 2^116 and down to 2^-447 (products of
+   floats) neither overflow nor lose a bit. t is overwritten. */
+#define KDRT__SUM_MAX 48
+static int kdrt__sign_of_sum(double *t, int n)
+{
+    double s = 0.0, m = 0.0;
+    int i, j;
+    for (i = 0; i < n; ++i) s += t[i], m += fabs(t[i]);
+    if (fabs(s) > (double)n * 2.220446049250313e-16 * m) return s > 0.0 ? 1 : -1;
+    if (m == 0.0) return 0;
+    for (i = 0; i < n; ++i) {
+        /* t[0 .. i) is the expansion so far; t[i] goes through it and ends on top. */
+        double q = t[i];
+        for (j = 0; j < i; ++j) kdrt__two_sum(q, t[j], &q, &t[j]);
+        t[i] = q;
+    }
+    for (i = n - 1; i >= 0; --i)
+        if (t[i] != 0.0) return t[i] > 0.0 ? 1 : -1;
+    return 0;
+}
+
+/* The sign of (Q_w - P_w)(X_u - Y_u) - (Q_u - P_u)(X_w - Y_w), exactly: multiplied out into
+   eight products of floats, each exact in double. */
+static int kdrt__sign_area(const float P[3], const float Q[3], const float X[3], const float Y[3],
+                           int u, int w)
+{
+    double t[8];
+    t[0] = (double)Q[w] * X[u], t[1] = -(double)Q[w] * Y[u];
+    t[2] = -(double)P[w] * X[u], t[3] = (double)P[w] * Y[u];
+    t[4] = -(double)Q[u] * X[w], t[5] = (double)Q[u] * Y[w];
+    t[6] = (double)P[u] * X[w], t[7] = -(double)P[u] * Y[w];
+    return kdrt__sign_of_sum(t, 8);
+}
+
+/* The 6 products of det(x, y, z) (rows), each product of three floats as two doubles whose sum
+   it is exactly (the first two factors' product is exact, the third's by fma), times sign. */
+static int kdrt__det_terms(const float x[3], const float y[3], const float z[3], double sign,
+                           double *t)
+{
+    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    static const double parity[6] = {1.0, -1.0, -1.0, 1.0, 1.0, -1.0};
+    int k;
+    for (k = 0; k < 6; ++k) {
+        const double xy = sign * parity[k] * ((double)x[perm[k][0]] * y[perm[k][1]]);
+        const double p = xy * z[perm[k][2]];
+        t[2 * k] = p;
+        t[2 * k + 1] = fma(xy, (double)z[perm[k][2]], -p);
+    }
+    return 12;
+}
+
+/* The sign of ((b - a) x (c - a)) . (v - a), exactly: which side of the triangle's plane v is
+   on. The filter is Shewchuk's orient3d bound; when it cannot decide, the determinant is
+   det(b, c, v) - det(b, c, a) - det(b, a, v) - det(a, c, v), 24 products of three floats. */
+static int kdrt__orient3d(const float a[3], const float b[3], const float c[3], const float v[3])
+{
+    const double adx = (double)a[0] - v[0], ady = (double)a[1] - v[1], adz = (double)a[2] - v[2];
+    const double bdx = (double)b[0] - v[0], bdy = (double)b[1] - v[1], bdz = (double)b[2] - v[2];
+    const double cdx = (double)c[0] - v[0], cdy = (double)c[1] - v[1], cdz = (double)c[2] - v[2];
+    const double bc = bdx * cdy - bdy * cdx, ca = cdx * ady - cdy * adx, ab = adx * bdy - ady * bdx;
+    /* det(a - v, b - v, c - v) = -((b - a) x (c - a)) . (v - a) */
+    const double det = adz * bc + bdz * ca + cdz * ab;
+    const double permanent = (fabs(bdx * cdy) + fabs(bdy * cdx)) * fabs(adz) +
+                             (fabs(cdx * ady) + fabs(cdy * adx)) * fabs(bdz) +
+                             (fabs(adx * bdy) + fabs(ady * bdx)) * fabs(cdz);
+    const double bound = 7.771561172376103e-16 /* (7 + 56 2^-53) 2^-53 */ * permanent;
+    double t[KDRT__SUM_MAX];
+    int n = 0;
+    if (det > bound) return -1;
+    if (-det > bound) return 1;
+    n += kdrt__det_terms(b, c, v, 1.0, t + n);
+    n += kdrt__det_terms(b, c, a, -1.0, t + n);
+    n += kdrt__det_terms(b, a, v, -1.0, t + n);
+    n += kdrt__det_terms(a, c, v, -1.0, t + n);
+    return kdrt__sign_of_sum(t, n);
+}
+
+/* 1 when the triangle p meets the closed box [lo, hi] (finite, lo <= hi): the separating axis
+   test (Akenine-Moeller 2001), its 13 axes' decisions each exact. Box axes compare floats;
+   the triangle's normal, found by the exact signs of its components, picks the box's two
+   corners extreme along it, whose sides of the plane kdrt__orient3d gives; each edge crossed
+   with each box axis is a line in the plane across that axis, against which the box's extreme
+   corner and the third corner are placed by kdrt__sign_area. Touching is meeting. */
+static int kdrt__triangle_box(float p[3][3], const float lo[3], const float hi[3])
+{
+    float vmin[3], vmax[3];
+    int a, i;
+    for (a = 0; a < 3; ++a) {
+        const float mn = p[0][a] < p[1][a] ? (p[0][a] < p[2][a] ? p[0][a] : p[2][a])
+                                           : (p[1][a] < p[2][a] ? p[1][a] : p[2][a]);
+        const float mx = p[0][a] > p[1][a] ? (p[0][a] > p[2][a] ? p[0][a] : p[2][a])
+                                           : (p[1][a] > p[2][a] ? p[1][a] : p[2][a]);
+        if (mn > hi[a] || mx < lo[a]) return 0;
+    }
+    for (a = 0; a < 3; ++a) {
+        /* n[a] = (b - a)_u (c - a)_w - (b - a)_w (c - a)_u, multiplied out */
+        const int u = (a + 1) % 3, w = (a + 2) % 3;
+        double t[6];
+        int s;
+        t[0] = (double)p[1][u] * p[2][w], t[1] = -(double)p[1][u] * p[0][w];
+        t[2] = -(double)p[0][u] * p[2][w], t[3] = -(double)p[1][w] * p[2][u];
+        t[4] = (double)p[1][w] * p[0][u], t[5] = (double)p[0][w] * p[2][u];
+        s = kdrt__sign_of_sum(t, 6);
+        vmin[a] = s > 0 ? lo[a] : hi[a], vmax[a] = s > 0 ? hi[a] : lo[a];
+    }
+    if (kdrt__orient3d(p[0], p[1], p[2], vmin) > 0) return 0; /* the box above the plane */
+    if (kdrt__orient3d(p[0], p[1], p[2], vmax) < 0) return 0; /* below it */
+    for (i = 0; i < 3; ++i) {
+        const float *P = p[i], *Q = p[(i + 1) % 3], *R = p[(i + 2) % 3];
+        for (a = 0; a < 3; ++a) {
+            /* Across axis a: the line through P and Q in the (u, w) plane, along which
+               s(X) = e_w X_u - e_u X_w is constant (e = Q - P). */
+            const int u = (a + 1) % 3, w = (a + 2) % 3;
+            float lo_x[3], hi_x[3];
+            if (Q[u] == P[u] && Q[w] == P[w]) continue; /* the edge along the axis: no line */
+            lo_x[a] = hi_x[a] = 0.0f;
+            lo_x[u] = Q[w] >= P[w] ? lo[u] : hi[u], hi_x[u] = Q[w] >= P[w] ? hi[u] : lo[u];
+            lo_x[w] = Q[u] >= P[u] ? hi[w] : lo[w], hi_x[w] = Q[u] >= P[u] ? lo[w] : hi[w];
+            if (kdrt__sign_area(P, Q, lo_x, P, u, w) > 0 && kdrt__sign_area(P, Q, lo_x, R, u, w) > 0)
+                return 0;
+            if (kdrt__sign_area(P, Q, hi_x, P, u, w) < 0 && kdrt__sign_area(P, Q, hi_x, R, u, w) < 0)
+                return 0;
+        }
+    }
+    return 1;
+}
+
+/* -- The distance from a point to a triangle (CLOSEST POINT AND OVERLAP) -- */
+
+/* a b - c d with one rounding's error at most 1.5 ulps (Kahan's, by fma): no cancellation. */
+static KDRT__FORCEINLINE double kdrt__dop(double a, double b, double c, double d)
+{
+    const double w = c * d;
+    return fma(a, b, -w) + fma(-c, d, w);
+}
+static KDRT__FORCEINLINE void kdrt__cross_accurate(const double x[3], const double y[3],
+                                                   double out[3])
+{
+    out[0] = kdrt__dop(x[1], y[2], x[2], y[1]);
+    out[1] = kdrt__dop(x[2], y[0], x[0], y[2]);
+    out[2] = kdrt__dop(x[0], y[1], x[1], y[0]);
+}
+static KDRT__FORCEINLINE double kdrt__dot3(const double x[3], const double y[3])
+{
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+}
+static KDRT__FORCEINLINE double kdrt__norm3(const double x[3])
+{
+    return sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+}
+
+/* The distance from the origin to the segment S + t e, t in [0, 1], whose end is E (= S + e up
+   to rounding: the ends are returned as they are given, so that a corner shared by triangles
+   gives each the same distance); its t in *t. */
+static KDRT__FORCEINLINE double kdrt__origin_segment(const double S[3], const double e[3],
+                                                     const double E[3], double *t)
+{
+    const double ee = kdrt__dot3(e, e), se = -kdrt__dot3(S, e);
+    double x, d[3];
+    int k;
+    if (!(se > 0.0) || ee == 0.0) return *t = 0.0, kdrt__norm3(S);
+    if (se >= ee) return *t = 1.0, kdrt__norm3(E);
+    x = se / ee;
+    for (k = 0; k < 3; ++k) d[k] = S[k] + x * e[k];
+    *t = x;
+    return kdrt__norm3(d);
+}
+
+/* The distance from point to the triangle with corners c (floats), and the barycentrics (u, v)
+   of its nearest point. Ericson's regions (Real-Time Collision Detection, 5.1.5), decided in the
+   point's own frame so that the error is bounded by the size of the triangle seen from the
+   point, not from the origin: the corners moved by -point in double (one rounding each); the
+   point's foot on the plane is inside when the three signed areas it makes with the edges,
+   (B x (C - B)) . n and its turns (n = (B - A) x (C - A)), are all at least 0, and the distance
+   is then |n . A| / |n|; otherwise it is the nearest of the three edges. The cross products are
+   formed by fma with one rounding a component, so slivers keep their normals. Error: see
+   CLOSEST POINT AND OVERLAP. */
+static KDRT__FORCEINLINE double kdrt__point_triangle(float c[3][3], const float point[3], double *u,
+                                                     double *v)
+{
+    double A[3], B[3], C[3], e0[3], e1[3], e2[3], n[3], m[3], nn, d, t, best, bu, bv;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        A[k] = (double)c[0][k] - point[k];
+        B[k] = (double)c[1][k] - point[k];
+        C[k] = (double)c[2][k] - point[k];
+    }
+    for (k = 0; k < 3; ++k) e0[k] = B[k] - A[k], e1[k] = C[k] - A[k], e2[k] = C[k] - B[k];
+    kdrt__cross_accurate(e0, e1, n);
+    nn = kdrt__dot3(n, n);
+    if (nn > 0.0) {
+        double la, lb, lc;
+        kdrt__cross_accurate(B, e2, m);
+        la = kdrt__dot3(m, n);
+        kdrt__cross_accurate(e1, C, m);
+        lb = kdrt__dot3(m, n);
+        kdrt__cross_accurate(A, e0, m);
+        lc = kdrt__dot3(m, n);
+        if (la >= 0.0 && lb >= 0.0 && lc >= 0.0) {
+            const double s = la + lb + lc;
+            *u = lb / s, *v = lc / s;
+            return fabs(kdrt__dot3(n, A)) / sqrt(nn);
+        }
+    }
+    /* Outside (or a triangle the rounding made flat): the nearest edge, the first on a tie. */
+    best = kdrt__origin_segment(A, e0, B, &t), bu = t, bv = 0.0;
+    d = kdrt__origin_segment(A, e1, C, &t);
+    if (d < best) best = d, bu = 0.0, bv = t;
+    d = kdrt__origin_segment(B, e2, C, &t);
+    if (d < best) best = d, bu = 1.0 - t, bv = t;
+    *u = bu, *v = bv;
+    return best;
+}
+
+/* The point at barycentrics (u, v) of the triangle c, in double, kept within its corners' box
+   (as kdrt__surface does), rounded to float. */
+static void kdrt__triangle_point(float c[3][3], double u, double v, float out[3])
+{
+    int a;
+    for (a = 0; a < 3; ++a) {
+        const double x = c[0][a] + u * ((double)c[1][a] - c[0][a]) + v * ((double)c[2][a] - c[0][a]);
+        const float lo = c[0][a] < c[1][a] ? (c[0][a] < c[2][a] ? c[0][a] : c[2][a])
+                                           : (c[1][a] < c[2][a] ? c[1][a] : c[2][a]);
+        const float hi = c[0][a] > c[1][a] ? (c[0][a] > c[2][a] ? c[0][a] : c[2][a])
+                                           : (c[1][a] > c[2][a] ? c[1][a] : c[2][a]);
+        out[a] = (float)(x < lo ? lo : (x > hi ? hi : x));
+    }
+}
+
+/* 1 when the triangle c meets the closed ball (center, radius), radius finite: a corner in the
+   ball, decided exactly (|p - center|^2 - radius^2 multiplied out: ten exact products), or the
+   distance of kdrt__point_triangle at most radius. A triangle whose box lies beyond radius
+   (in double, with a margin of 2^-40 for its rounding) is left out first. */
+static int kdrt__triangle_ball(float c[3][3], const float center[3], float radius)
+{
+    double d2 = 0.0, u, v, t[10];
+    int a, k;
+    for (a = 0; a < 3; ++a) {
+        const float lo = c[0][a] < c[1][a] ? (c[0][a] < c[2][a] ? c[0][a] : c[2][a])
+                                           : (c[1][a] < c[2][a] ? c[1][a] : c[2][a]);
+        const float hi = c[0][a] > c[1][a] ? (c[0][a] > c[2][a] ? c[0][a] : c[2][a])
+                                           : (c[1][a] > c[2][a] ? c[1][a] : c[2][a]);
+        const double x = center[a] < lo ? (double)lo - center[a]
+                                        : (center[a] > hi ? (double)center[a] - hi : 0.0);
+        d2 += x * x;
+    }
+    if (d2 * (1.0 - 9.094947017729282e-13) > (double)radius * radius) return 0;
+    for (k = 0; k < 3; ++k) {
+        for (a = 0; a < 3; ++a) {
+            t[3 * a] = (double)c[k][a] * c[k][a];
+            t[3 * a + 1] = -2.0 * ((double)c[k][a] * center[a]);
+            t[3 * a + 2] = (double)center[a] * center[a];
+        }
+        t[9] = -((double)radius * radius);
+        if (kdrt__sign_of_sum(t, 10) <= 0) return 1;
+    }
+    return kdrt__point_triangle(c, center, &u, &v) <= (double)radius;
+}
+
+/* -- The walks (CLOSEST POINT AND OVERLAP) -- */
+
+/* A node waiting on a walk's stack, with its box (the tree's bounds cut by the splits above it)
+   and, for the overlap walk, which of its faces are split planes (bit 2 a: the face at lo[a],
+   bit 2 a + 1: at hi[a]; the others are faces of the tree's bounds). */
+typedef struct kdrt__box_todo {
+    uint32_t node, faces;
+    float lo[3], hi[3];
+} kdrt__box_todo;
+
+/* A node waiting on the closest-point walk's stack: the distances from the query's point to its
+   box along each axis (0 within its extent), whose squares sum to the box's squared distance. */
+typedef struct kdrt__point_todo {
+    uint32_t node;
+    double off[3];
+} kdrt__point_todo;
+
+/* The margin of the walks' pruning: a node or a triangle is left out only when its distance,
+   less 2^-40 of it, exceeds the best so far, so that rounding (a few ulps of double) never
+   prunes a triangle whose computed distance would tie or win. */
+#define KDRT__PRUNE_SLACK (1.0 - 9.094947017729282e-13)
+
+/* The distance from y to the box [lo, hi], in double. */
+static double kdrt__box_distance(const double y[3], const float lo[3], const float hi[3])
+{
+    double d2 = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        const double x = y[a] < lo[a] ? lo[a] - y[a] : (y[a] > hi[a] ? y[a] - hi[a] : 0.0);
+        d2 += x * x;
+    }
+    return sqrt(d2);
+}
+
+/* A leaf lane's corners: the tree's, or carried into the world by the instance in and rounded
+   to float (the triangle an instance stands for in these queries: CLOSEST POINT AND OVERLAP). */
+static void kdrt__lane_world(const kdrt__block *block, uint32_t lane, const kdrt__instance *in,
+                               float object[3][3], float world[3][3])
+{
+    int k, a;
+    for (k = 0; k < 3; ++k)
+        for (a = 0; a < 3; ++a) object[k][a] = block->corner[3 * k + a][lane];
+    for (k = 0; k < 3; ++k)
+        for (a = 0; a < 3; ++a)
+            world[k][a] = in ? (float)(in->to_world[4 * a] * object[k][0] +
+                                       in->to_world[4 * a + 1] * object[k][1] +
+                                       in->to_world[4 * a + 2] * object[k][2] + in->to_world[4 * a + 3])
+                             : object[k][a];
+}
+
+/* How far an instance's world triangles (corners rounded to float) may lie from the exact image
+   of its tree's triangles: the float rounding of a corner (2^-24 of the world box's largest
+   coordinate) and the double evaluation's (2^-50 of |R| |p| + |t|), each component, times 2 for
+   the three components' length. */
+static double kdrt__instance_slop(const kdrt__instance *in)
+{
+    const kdrt_aabb *tb = &in->tree->bounds;
+    double big = 0.0, p = 0.0, sum = 0.0;
+    int a, j;
+    for (a = 0; a < 3; ++a) {
+        big = fabs(in->box.min[a]) > big ? fabs(in->box.min[a]) : big;
+        big = fabs(in->box.max[a]) > big ? fabs(in->box.max[a]) : big;
+        p = fabs(tb->min[a]) > p ? fabs(tb->min[a]) : p;
+        p = fabs(tb->max[a]) > p ? fabs(tb->max[a]) : p;
+    }
+    for (a = 0; a < 3; ++a) {
+        double row = fabs(in->to_world[4 * a + 3]);
+        for (j = 0; j < 3; ++j) row += fabs(in->to_world[4 * a + j]) * p;
+        sum = row > sum ? row : sum;
+    }
+    return 2.0 * (5.960464477539063e-08 /* 2^-24 */ * big + 8.881784197001252e-16 /* 2^-50 */ * sum);
+}
+
+/* The best triangle of a closest-point query so far, ordered by (distance, key, triangle). */
+typedef struct kdrt__closest_best {
+    double distance, u, v; /* before one is found: the bound the walk prunes by */
+    float limit;            /* max_distance, which the first one's rounded distance must meet */
+    uint32_t key, triangle, instance;
+    int found;
+    float corners[3][3]; /* its corners in the world, for the point */
+    /* The supporting-plane bound (kdrt__closest_walk_body): w, about the best point less the
+       query's point, and its length, when plane is 1; 0 when the best changed since. */
+    double w[3], w_length;
+    int plane;
+} kdrt__closest_best;
+
+/* Sets best's w to its point less q (the query's point in the world), for the supporting-plane
+   bound; plane stays 0 when that is 0 or not finite. */
+static void kdrt__closest_plane(kdrt__closest_best *best, const float q[3])
+{
+    double n2 = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        const double c0 = best->corners[0][a];
+        best->w[a] = c0 + best->u * ((double)best->corners[1][a] - c0) +
+                     best->v * ((double)best->corners[2][a] - c0) - q[a];
+        n2 += best->w[a] * best->w[a];
+    }
+    best->w_length = sqrt(n2);
+    best->plane = best->w_length > 0.0 && best->w_length < INFINITY ? 1 : -1;
+}
+
+/* A lower bound of the distance from y to the triangle of block's lane: for any vector w,
+   |x - y| >= w . (x - y) / |w|, and over the triangle w . (x - y) is least at a corner. Each
+   w . (p - y) is lowered by 2^-48 of the sum of its terms' magnitudes (more than its rounding),
+   and |w| raised by 2^-48 (more than its): a bound of the exact distance whatever w is. With w
+   the best point less y, triangles behind the best one's supporting plane (most of a convex
+   surface's, seen from outside) are left out without measuring them. 0 when it cannot say. */
+static KDRT__FORCEINLINE double kdrt__plane_bound(const kdrt__block *block, uint32_t lane,
+                                                  const double y[3], const double w[3],
+                                                  double w_length)
+{
+    double least = INFINITY;
+    int k, a;
+    for (k = 0; k < 3; ++k) {
+        double t = 0.0, m = 0.0;
+        for (a = 0; a < 3; ++a) {
+            const double x = w[a] * ((double)block->corner[3 * k + a][lane] - y[a]);
+            t += x, m += fabs(x);
+        }
+        t -= 3.552713678800501e-15 /* 2^-48 */ * m;
+        least = t < least ? t : least;
+    }
+    return least > 0.0 ? least / (w_length * (1.0 + 3.552713678800501e-15)) : 0.0;
+}
+
+/* The bounds a leaf block's triangles are pruned by: for each lane, the distance from q to the
+   lane's box (its corners' box) and, when w_length > 0, the supporting-plane bound of
+   kdrt__plane_bound for w, the larger, times KDRT__PRUNE_SLACK, in double (a lane past the
+   leaf's count gives whatever its corners give, unused). y is q in double. */
+static void kdrt__block_bounds(const kdrt__block *block, const float q[3], const double y[3],
+                               const double w[3], double w_length, double bound[KDRT__LANES])
+{
+    uint32_t lane;
+    int a, k;
+    for (lane = 0; lane < KDRT__LANES; ++lane) {
+        double d2 = 0.0, b;
+        for (a = 0; a < 3; ++a) {
+            float lo = block->corner[a][lane], hi = lo;
+            double d;
+            for (k = 1; k < 3; ++k) {
+                const float c = block->corner[3 * k + a][lane];
+                lo = c < lo ? c : lo;
+                hi = c > hi ? c : hi;
+            }
+            d = q[a] < lo ? (double)lo - q[a] : (q[a] > hi ? (double)q[a] - hi : 0.0);
+            d2 += d * d;
+        }
+        b = sqrt(d2);
+        if (w_length > 0.0) {
+            const double p = kdrt__plane_bound(block, lane, y, w, w_length);
+            b = p > b ? p : b;
+        }
+        bound[lane] = b * KDRT__PRUNE_SLACK;
+    }
+}
+
+#ifdef KDRT__AVX2
+/* The same, 4 lanes at a time in double with AVX2: the same operations on the same values
+   (the corners widened exactly, one rounding a subtraction, product and sum, sqrt and the
+   division correctly rounded), so the same bounds bit for bit. */
+KDRT__TARGET_AVX2 static void kdrt__block_bounds_avx2(const kdrt__block *block, const float q[3],
+                                                      const double y[3], const double w[3],
+                                                      double w_length, double bound[KDRT__LANES])
+{
+    const __m256d zero = _mm256_setzero_pd(), slack = _mm256_set1_pd(KDRT__PRUNE_SLACK);
+    const __m256d sign = _mm256_set1_pd(-0.0), margin = _mm256_set1_pd(3.552713678800501e-15);
+    const __m256d length = _mm256_set1_pd(w_length * (1.0 + 3.552713678800501e-15));
+    int half, a, k;
+    for (half = 0; half < 2; ++half) {
+        __m256d d2 = zero, b;
+        for (a = 0; a < 3; ++a) {
+            const __m128 c0 = _mm_loadu_ps(&block->corner[a][4 * half]);
+            const __m128 c1 = _mm_loadu_ps(&block->corner[3 + a][4 * half]);
+            const __m128 c2 = _mm_loadu_ps(&block->corner[6 + a][4 * half]);
+            const __m256d lo = _mm256_cvtps_pd(_mm_min_ps(_mm_min_ps(c0, c1), c2));
+            const __m256d hi = _mm256_cvtps_pd(_mm_max_ps(_mm_max_ps(c0, c1), c2));
+            const __m256d yq = _mm256_set1_pd((double)q[a]);
+            const __m256d d =
+                _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(lo, yq), _mm256_sub_pd(yq, hi)), zero);
+            d2 = _mm256_add_pd(d2, _mm256_mul_pd(d, d));
+        }
+        b = _mm256_sqrt_pd(d2);
+        if (w_length > 0.0) {
+            __m256d least = _mm256_set1_pd(INFINITY), p;
+            for (k = 0; k < 3; ++k) {
+                __m256d t = zero, m = zero;
+                for (a = 0; a < 3; ++a) {
+                    const __m256d c =
+                        _mm256_cvtps_pd(_mm_loadu_ps(&block->corner[3 * k + a][4 * half]));
+                    const __m256d x =
+                        _mm256_mul_pd(_mm256_set1_pd(w[a]), _mm256_sub_pd(c, _mm256_set1_pd(y[a])));
+                    t = _mm256_add_pd(t, x), m = _mm256_add_pd(m, _mm256_andnot_pd(sign, x));
+                }
+                t = _mm256_sub_pd(t, _mm256_mul_pd(margin, m));
+                least = _mm256_min_pd(t, least); /* t < least ? t : least */
+            }
+            p = _mm256_and_pd(_mm256_div_pd(least, length), _mm256_cmp_pd(least, zero, _CMP_GT_OQ));
+            b = _mm256_max_pd(p, b); /* p > b ? p : b */
+        }
+        _mm256_storeu_pd(bound + 4 * half, _mm256_mul_pd(b, slack));
+    }
+}
+#endif
+
+/* best updated with triangle id (key, instance in) at distance d, barycentrics (u, v), corners
+   world, when it comes before best in the (distance, key, triangle) order. */
+static KDRT__FORCEINLINE void kdrt__closest_offer(kdrt__closest_best *best, double d, double u,
+                                                  double v, uint32_t key, uint32_t id,
+                                                  const kdrt__instance *in, float world[3][3])
+{
+    if (best->found ? d < best->distance ||
+                          (d == best->distance &&
+                           (key < best->key || (key == best->key && id < best->triangle)))
+                    : (float)d <= best->limit) {
+        best->distance = d, best->u = u, best->v = v;
+        best->key = key, best->triangle = id, best->found = 1;
+        best->instance = in ? in->id : KDRT_INVALID_ID;
+        memcpy(best->corners, world, sizeof best->corners);
+        best->plane = 0;
+    }
+}
+
+/* One tree's walk for a closest-point query: the nearer child first, the farther one on the stack
+   with its distances from the point along the axes (the split axis's from the split plane, the
+   others its parent's: the box distance as kdrt__box_distance finds it, bit for bit); a node is
+   skipped when its distance (in the tree's space, times scale, less slop: a lower bound of the
+   world distance of any triangle it holds, CLOSEST POINT AND OVERLAP) exceeds the best so far.
+   Its triangles get key and instance; mask against the parts' masks (a scene's mesh tree:
+   triangles compared as the tree numbers them, which is the (geometry ID, triangle) order). A
+   tree's own triangles (no instance) are pruned a leaf block at a time by the larger of their
+   boxes' distances and their supporting-plane bounds (kdrt__block_bounds, 8 lanes at once with
+   AVX2 when avx2 is set); an instance's, carried into the world one by one, by their world
+   boxes. Which triangles are measured, and in which order, changes the work, never the answer:
+   the best is the first in the (distance, key, triangle) order whatever the order it is offered
+   in. */
+static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, const kdrt__instance *in,
+                                                      const double y[3], const float q[3],
+                                                      double scale, double slop, uint32_t mask,
+                                                      uint32_t key, kdrt__closest_best *best,
+                                                      int avx2)
+{
+    kdrt__point_todo stack[KDRT_MAX_DEPTH + 1];
+    uint32_t sp = 0, node = 0, i, lane;
+    double off[3];
+    const int check_mask = !tree->masks_full, plain = scale == 1.0 && slop == 0.0;
+    int a;
+    (void)avx2;
+    if (tree->stats.triangles == 0) return;
+    for (a = 0; a < 3; ++a) {
+        const double lo = tree->bounds.min[a], hi = tree->bounds.max[a];
+        off[a] = y[a] < lo ? lo - y[a] : (y[a] > hi ? y[a] - hi : 0.0);
+    }
+    for (;;) {
+        const double box2 = 0.0 + off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
+        int near_enough;
+        if (plain) /* the squares, with a slack of 2^-38 on box2 (more than 2^-40 on its root) */
+            near_enough = !(box2 * (1.0 - 3.637978807091713e-12) > best->distance * best->distance);
+        else
+            near_enough = !((sqrt(box2) * scale - slop) * KDRT__PRUNE_SLACK > best->distance);
+        if (near_enough) {
+            const kdrt__node *n = &tree->nodes[node];
+            const uint32_t count = kdrt__node_count(n);
+            if (!kdrt__node_is_leaf(n)) {
+                const uint32_t axis = kdrt__node_axis(n);
+                const double split = n->u.split;
+                const int below = y[axis] <= split;
+                kdrt__point_todo *far = &stack[sp++];
+                KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
+                for (a = 0; a < 3; ++a) far->off[a] = off[a];
+                far->off[axis] = below ? split - y[axis] : y[axis] - split;
+                far->node = below ? kdrt__node_above(n) : node + 1;
+                node = below ? node + 1 : kdrt__node_above(n);
+                continue;
+            }
+            if (!in) {
+                for (i = 0; i < count; i += KDRT__LANES) {
+                    const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
+                    const uint32_t lanes = count - i < KDRT__LANES ? count - i : KDRT__LANES;
+                    double bounds[KDRT__LANES];
+                    double w_length = 0.0;
+                    if (best->found && best->plane == 0) kdrt__closest_plane(best, q);
+                    if (best->plane > 0) w_length = best->w_length;
+#ifdef KDRT__AVX2
+                    if (avx2) kdrt__block_bounds_avx2(block, q, y, best->w, w_length, bounds);
+                    else
+#endif
+                        kdrt__block_bounds(block, q, y, best->w, w_length, bounds);
+                    for (lane = 0; lane < lanes; ++lane) {
+                        float world[3][3];
+                        double d, u, v;
+                        const uint32_t id = block->id[lane];
+                        if (bounds[lane] > best->distance) continue;
+                        if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask)) continue;
+                        for (a = 0; a < 9; ++a) world[a / 3][a % 3] = block->corner[a][lane];
+                        d = kdrt__point_triangle(world, q, &u, &v);
+                        kdrt__closest_offer(best, d, u, v, key, id, in, world);
+                    }
+                }
+            } else {
+                for (i = 0; i < count; ++i) {
+                    const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
+                    const uint32_t id = block->id[i % KDRT__LANES];
+                    float object[3][3], world[3][3];
+                    double d, u, v, d2 = 0.0;
+                    lane = i % KDRT__LANES;
+                    if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask)) continue;
+                    kdrt__lane_world(block, lane, in, object, world);
+                    /* The triangle's box first: most triangles of a leaf are farther than the best. */
+                    for (a = 0; a < 3; ++a) {
+                        int k;
+                        double tlo = world[0][a], thi = world[0][a];
+                        for (k = 1; k < 3; ++k) {
+                            tlo = world[k][a] < tlo ? world[k][a] : tlo;
+                            thi = world[k][a] > thi ? world[k][a] : thi;
+                        }
+                        d = q[a] < tlo ? tlo - q[a] : (q[a] > thi ? q[a] - thi : 0.0);
+                        d2 += d * d;
+                    }
+                    if (sqrt(d2) * KDRT__PRUNE_SLACK > best->distance) continue;
+                    d = kdrt__point_triangle(world, q, &u, &v);
+                    kdrt__closest_offer(best, d, u, v, key, id, in, world);
+                }
+            }
+        }
+        if (sp == 0) return;
+        --sp;
+        node = stack[sp].node;
+        for (a = 0; a < 3; ++a) off[a] = stack[sp].off[a];
+    }
+}
+
+static void kdrt__closest_walk_scalar(const kdrt_tree *tree, const kdrt__instance *in,
+                                      const double y[3], const float q[3], double scale,
+                                      double slop, uint32_t mask, uint32_t key,
+                                      kdrt__closest_best *best)
+{
+    kdrt__closest_walk_body(tree, in, y, q, scale, slop, mask, key, best, 0);
+}
+
+#ifdef KDRT__AVX2
+/* The walk compiled for AVX2 and FMA: the blocks' bounds 8 lanes at a time, and the distance's
+   fma() one instruction instead of a call (fma is exact: the same answers). */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((target("avx2,fma")))
+#endif
+static void kdrt__closest_walk_avx2(const kdrt_tree *tree, const kdrt__instance *in,
+                                    const double y[3], const float q[3], double scale, double slop,
+                                    uint32_t mask, uint32_t key, kdrt__closest_best *best)
+{
+    kdrt__closest_walk_body(tree, in, y, q, scale, slop, mask, key, best, 1);
+}
+
+/* 1 where the CPU has FMA (every AVX2 CPU made so far; checked all the same). */
+static int kdrt__cpu_has_fma(void)
+{
+#if defined(_MSC_VER) && !defined(__clang__)
+    int info[4];
+    __cpuid(info, 1);
+    return ((unsigned)info[2] >> 12) & 1u;
+#elif defined(_MSC_VER)
+    return 1; /* clang-cl: the walk's fma() stays a call without the target attribute's effect */
+#else
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("fma") != 0;
+#endif
+}
+#endif
+
+/* The walk of the tree's kernel: the AVX2 form where the tree runs the AVX2 or AVX-512 kernel
+   (and the CPU has FMA), else the scalar one; both give the same answers. */
+static void kdrt__closest_walk(const kdrt_tree *tree, const kdrt__instance *in, const double y[3],
+                               const float q[3], double scale, double slop, uint32_t mask,
+                               uint32_t key, kdrt__closest_best *best)
+{
+#ifdef KDRT__AVX2
+    if ((tree->simd == KDRT_KERNEL_AVX2 || tree->simd == KDRT_KERNEL_AVX512) && kdrt__cpu_has_fma()) {
+        kdrt__closest_walk_avx2(tree, in, y, q, scale, slop, mask, key, best);
+        return;
+    }
+#endif
+    kdrt__closest_walk_scalar(tree, in, y, q, scale, slop, mask, key, best);
+}
+
+/* kdrt_closest_point()'s checks and its answer from best. */
+static kdrt_result kdrt__closest_start(const float point[3], float max_distance,
+                                       kdrt_closest *out, kdrt__closest_best *best)
+{
+    memset(out, 0, sizeof *out);
+    out->triangle = out->instance = KDRT_INVALID_ID;
+    out->distance = INFINITY;
+    memset(best, 0, sizeof *best);
+    /* The distance returned is rounded to float: one at max_distance after rounding counts. */
+    best->limit = max_distance;
+    best->distance = max_distance < FLT_MAX ? (double)kdrt__next_up(max_distance) : INFINITY;
+    if (!kdrt__finite(point[0]) || !kdrt__finite(point[1]) || !kdrt__finite(point[2]) ||
+        !(max_distance >= 0.0f))
+        return KDRT_ERROR_INVALID_QUERY;
+    return KDRT_SUCCESS;
+}
+static void kdrt__closest_finish(const kdrt__closest_best *best, kdrt_closest *out)
+{
+    float corners[3][3];
+    if (!best->found) return;
+    memcpy(corners, best->corners, sizeof corners);
+    out->distance = (float)best->distance;
+    out->u = (float)best->u, out->v = (float)best->v;
+    out->triangle = best->triangle;
+    out->geometry = best->key;
+    out->instance = best->instance;
+    kdrt__triangle_point(corners, best->u, best->v, out->point);
+}
+
+KDRT_API kdrt_result kdrt_closest_point(const kdrt_tree *tree, const float point[3],
+                                        float max_distance, kdrt_closest *out)
+{
+    kdrt__closest_best best;
+    kdrt_result r;
+    double y[3];
+    if (!out) return KDRT_ERROR_NULL_ARGUMENT;
+    if (!tree || !point) {
+        memset(out, 0, sizeof *out);
+        out->triangle = out->instance = KDRT_INVALID_ID, out->distance = INFINITY;
+        return KDRT_ERROR_NULL_ARGUMENT;
+    }
+    r = kdrt__closest_start(point, max_distance, out, &best);
+    if (r != KDRT_SUCCESS) return r;
+    y[0] = point[0], y[1] = point[1], y[2] = point[2];
+    kdrt__closest_walk(tree, NULL, y, point, 1.0, 0.0, 0xFFFFFFFFu, 0, &best);
+    kdrt__closest_finish(&best, out);
+    return KDRT_SUCCESS;
+}
+
+/* An overlap query as one tree's walk sees it. */
+typedef struct kdrt__overlap_query {
+    /* The world's shape: a box [lo, hi] (finite, lo <= hi) or, when sphere, the ball. */
+    float lo[3], hi[3];
+    int sphere;
+    float center[3], radius;
+    uint32_t mask;
+    kdrt_overlap_fn callback;
+    void *user;
+    uint64_t count;
+    int stopped;
+} kdrt__overlap_query;
+
+/* 1 when the closed boxes [alo, ahi] and [blo, bhi] meet. */
+static int kdrt__boxes_meet(const float alo[3], const float ahi[3], const float blo[3],
+                            const float bhi[3])
+{
+    return alo[0] <= bhi[0] && blo[0] <= ahi[0] && alo[1] <= bhi[1] && blo[1] <= ahi[1] &&
+           alo[2] <= bhi[2] && blo[2] <= ahi[2];
+}
+
+/* Whether leaf, found by the walk of the box [qlo, qhi], is the one that reports triangle id whose
+   box, cut by [qlo, qhi], is [blo, bhi] (and meets the leaf's box): the first leaf in node order
+   (depth first, below first, as the nodes are numbered) whose box meets [blo, bhi] and that
+   refers to id. Every leaf whose box meets [blo, bhi] is one the walk reaches, so exactly one of
+   them says yes (CLOSEST POINT AND OVERLAP). */
+static int kdrt__first_leaf_of(const kdrt_tree *tree, uint32_t leaf, uint32_t id,
+                               const float blo[3], const float bhi[3])
+{
+    kdrt__box_todo stack[KDRT_MAX_DEPTH + 1];
+    uint32_t sp = 0, node = 0, i;
+    float lo[3], hi[3];
+    int a;
+    for (a = 0; a < 3; ++a) lo[a] = tree->bounds.min[a], hi[a] = tree->bounds.max[a];
+    for (;;) {
+        if (kdrt__boxes_meet(lo, hi, blo, bhi)) {
+            const kdrt__node *n = &tree->nodes[node];
+            if (!kdrt__node_is_leaf(n)) {
+                const uint32_t axis = kdrt__node_axis(n);
+                kdrt__box_todo *above = &stack[sp++];
+                KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
+                for (a = 0; a < 3; ++a) above->lo[a] = lo[a], above->hi[a] = hi[a];
+                above->node = kdrt__node_above(n), above->lo[axis] = n->u.split;
+                hi[axis] = n->u.split, node = node + 1;
+                continue;
+            }
+            if (node == leaf) return 1;
+            for (i = 0; i < kdrt__node_count(n); ++i)
+                if (tree->blocks[n->u.first + i / KDRT__LANES].id[i % KDRT__LANES] == id) return 0;
+        }
+        if (sp == 0) return 1; /* not reached: leaf itself meets the box */
+        --sp;
+        node = stack[sp].node;
+        for (a = 0; a < 3; ++a) lo[a] = stack[sp].lo[a], hi[a] = stack[sp].hi[a];
+    }
+}
+
+/* One tree's walk of an overlap query: every leaf whose box meets [qlo, qhi] (the query's box
+   in the tree's space, with room for the rounding of an instance's corners), and in it each
+   triangle that meets the query's shape (its corners in the world) and for which this leaf is
+   the one that reports it. geometry and instance name what is reported (a scene's mesh tree:
+   geometry KDRT_INVALID_ID, each triangle named by its part). */
+static void kdrt__overlap_walk(const kdrt_tree *tree, const kdrt__instance *in, const float qlo[3],
+                               const float qhi[3], uint32_t geometry, kdrt__overlap_query *query)
+{
+    kdrt__box_todo stack[KDRT_MAX_DEPTH + 1];
+    uint32_t sp = 0, node = 0, faces = 0, i;
+    float lo[3], hi[3];
+    const int check_mask = !tree->masks_full;
+    int a;
+    if (tree->stats.triangles == 0) return;
+    for (a = 0; a < 3; ++a) lo[a] = tree->bounds.min[a], hi[a] = tree->bounds.max[a];
+    for (;;) {
+        if (kdrt__boxes_meet(lo, hi, qlo, qhi)) {
+            const kdrt__node *n = &tree->nodes[node];
+            if (!kdrt__node_is_leaf(n)) {
+                const uint32_t axis = kdrt__node_axis(n);
+                kdrt__box_todo *above = &stack[sp++];
+                KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
+                for (a = 0; a < 3; ++a) above->lo[a] = lo[a], above->hi[a] = hi[a];
+                above->node = kdrt__node_above(n), above->lo[axis] = n->u.split;
+                above->faces = faces | 1u << (2 * axis);
+                hi[axis] = n->u.split, faces |= 1u << (2 * axis + 1), node = node + 1;
+                continue;
+            }
+            for (i = 0; i < kdrt__node_count(n); ++i) {
+                const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
+                const uint32_t id = block->id[i % KDRT__LANES];
+                float object[3][3], world[3][3], blo[3], bhi[3];
+                int inside = 1, k, meets;
+                kdrt_overlap found;
+                if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & query->mask)) continue;
+                kdrt__lane_world(block, i % KDRT__LANES, in, object, world);
+                /* The triangle's box (in the tree's space) cut by the query's: the leaves whose
+                   boxes meet it are those that may report it. */
+                for (a = 0; a < 3; ++a) {
+                    blo[a] = object[0][a], bhi[a] = object[0][a];
+                    for (k = 1; k < 3; ++k) {
+                        blo[a] = object[k][a] < blo[a] ? object[k][a] : blo[a];
+                        bhi[a] = object[k][a] > bhi[a] ? object[k][a] : bhi[a];
+                    }
+                    blo[a] = qlo[a] > blo[a] ? qlo[a] : blo[a];
+                    bhi[a] = qhi[a] < bhi[a] ? qhi[a] : bhi[a];
+                }
+                if (!kdrt__boxes_meet(blo, bhi, lo, hi)) continue;
+                meets = query->sphere ? kdrt__finite(query->radius)
+                                            ? kdrt__triangle_ball(world, query->center, query->radius)
+                                            : 1
+                                      : kdrt__triangle_box(world, query->lo, query->hi);
+                if (!meets) continue;
+                /* Within the leaf's box, away from every split face: no other leaf's box meets
+                   it. Else the first leaf in node order that refers to it reports it. */
+                for (a = 0; a < 3; ++a) {
+                    if ((faces >> (2 * a) & 1u) && !(blo[a] > lo[a])) inside = 0;
+                    if ((faces >> (2 * a + 1) & 1u) && !(bhi[a] < hi[a])) inside = 0;
+                }
+                if (!inside && !kdrt__first_leaf_of(tree, node, id, blo, bhi)) continue;
+                found.triangle = id, found.geometry = geometry;
+                found.instance = in ? in->id : KDRT_INVALID_ID;
+                if (geometry == KDRT_INVALID_ID) {
+                    const kdrt__part *part = kdrt__part_of(&tree->meshes, id);
+                    found.triangle = id - part->first, found.geometry = part->id;
+                }
+                ++query->count;
+                if (query->callback && !query->callback(query->user, &found)) {
+                    query->stopped = 1;
+                    return;
+                }
+            }
+        }
+        if (sp == 0) return;
+        --sp;
+        node = stack[sp].node, faces = stack[sp].faces;
+        for (a = 0; a < 3; ++a) lo[a] = stack[sp].lo[a], hi[a] = stack[sp].hi[a];
+    }
+}
+
+/* The world box of the query: its box, or the ball's, rounded outwards. */
+static kdrt_result kdrt__overlap_setup_box(const kdrt_aabb *box, kdrt__overlap_query *q, int *empty)
+{
+    int a;
+    memset(q, 0, sizeof *q);
+    *empty = 0;
+    for (a = 0; a < 3; ++a)
+        if (box->min[a] != box->min[a] || box->max[a] != box->max[a]) return KDRT_ERROR_INVALID_QUERY;
+    for (a = 0; a < 3; ++a) {
+        /* An infinite bound is a half-space: the triangles' corners are finite, so the largest
+           float stands for it; min +inf or max -inf hold no finite point. */
+        if (!(box->min[a] <= box->max[a]) || box->min[a] == INFINITY || box->max[a] == -INFINITY)
+            *empty = 1;
+        q->lo[a] = box->min[a] < -FLT_MAX ? -FLT_MAX : box->min[a];
+        q->hi[a] = box->max[a] > FLT_MAX ? FLT_MAX : box->max[a];
+    }
+    q->mask = 0xFFFFFFFFu;
+    return KDRT_SUCCESS;
+}
+static kdrt_result kdrt__overlap_setup_sphere(const float center[3], float radius,
+                                              kdrt__overlap_query *q)
+{
+    int a;
+    memset(q, 0, sizeof *q);
+    if (!kdrt__finite(center[0]) || !kdrt__finite(center[1]) || !kdrt__finite(center[2]) ||
+        !(radius >= 0.0f))
+        return KDRT_ERROR_INVALID_QUERY;
+    q->sphere = 1, q->radius = radius;
+    for (a = 0; a < 3; ++a) {
+        q->center[a] = center[a];
+        q->lo[a] = kdrt__float_down((double)center[a] - radius);
+        q->hi[a] = kdrt__float_up((double)center[a] + radius);
+        q->lo[a] = q->lo[a] < -FLT_MAX ? -FLT_MAX : q->lo[a];
+        q->hi[a] = q->hi[a] > FLT_MAX ? FLT_MAX : q->hi[a];
+    }
+    q->mask = 0xFFFFFFFFu;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_overlap_box(const kdrt_tree *tree, const kdrt_aabb *box,
+                                      kdrt_overlap_fn callback, void *user, uint64_t *out_count)
+{
+    kdrt__overlap_query q;
+    kdrt_result r;
+    int empty;
+    if (out_count) *out_count = 0;
+    if (!tree || !box) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__overlap_setup_box(box, &q, &empty);
+    if (r != KDRT_SUCCESS || empty) return r;
+    q.callback = callback, q.user = user;
+    kdrt__overlap_walk(tree, NULL, q.lo, q.hi, 0, &q);
+    if (out_count) *out_count = q.count;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_overlap_sphere(const kdrt_tree *tree, const float center[3],
+                                         float radius, kdrt_overlap_fn callback, void *user,
+                                         uint64_t *out_count)
+{
+    kdrt__overlap_query q;
+    kdrt_result r;
+    if (out_count) *out_count = 0;
+    if (!tree || !center) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__overlap_setup_sphere(center, radius, &q);
+    if (r != KDRT_SUCCESS) return r;
+    q.callback = callback, q.user = user;
+    kdrt__overlap_walk(tree, NULL, q.lo, q.hi, 0, &q);
+    if (out_count) *out_count = q.count;
+    return KDRT_SUCCESS;
+}
+
+/* -- Scenes: the mesh tree, then the instances through the top level -- */
+
+/* What a query carries into an instance's space: y = R^-1 (q - t), and how a distance there
+   bounds one in the world (CLOSEST POINT AND OVERLAP): |R x| >= |x| / |R^-1|_F (the Frobenius
+   norm bounds the largest singular value of R^-1), less the rounding of y and of the world
+   corners. */
+static void kdrt__instance_point(const kdrt__instance *in, const float q[3], double y[3],
+                                 double *scale, double *slop)
+{
+    const double *r = in->to_object;
+    double frob = 0.0, wfrob = 0.0, big = 0.0, rows = 0.0;
+    int a, j;
+    for (a = 0; a < 3; ++a) {
+        const double x0 = (double)q[0] - in->to_world[3], x1 = (double)q[1] - in->to_world[7],
+                     x2 = (double)q[2] - in->to_world[11];
+        y[a] = r[3 * a] * x0 + r[3 * a + 1] * x1 + r[3 * a + 2] * x2;
+    }
+    for (a = 0; a < 9; ++a) frob += r[a] * r[a];
+    for (a = 0; a < 3; ++a) {
+        double row = 0.0;
+        for (j = 0; j < 3; ++j) wfrob += in->to_world[4 * a + j] * in->to_world[4 * a + j];
+        for (j = 0; j < 3; ++j) row += fabs(r[3 * a + j]);
+        rows = row > rows ? row : rows;
+        big = fabs((double)q[a]) + fabs(in->to_world[4 * a + 3]) > big
+                  ? fabs((double)q[a]) + fabs(in->to_world[4 * a + 3]) : big;
+    }
+    frob = sqrt(frob);
+    *scale = 1.0 / frob;
+    /* y's rounding, at most 2^-50 |R^-1| (|q| + |t|) a component, is at most |R| times that in
+       the world. */
+    *slop = kdrt__instance_slop(in) +
+            2.0 * sqrt(wfrob) * rows * big * 8.881784197001252e-16 /* 2^-50 */;
+}
+
+/* A lane of the top level waiting on a walk's stack, with its distance. */
+typedef struct kdrt__level_near {
+    uint32_t first, count;
+    double distance;
+} kdrt__level_near;
+
+KDRT_API kdrt_result kdrt_scene_closest_point(const kdrt_scene *scene, const float point[3],
+                                              float max_distance, uint32_t mask,
+                                              kdrt_closest *out)
+{
+    kdrt__closest_best best;
+    kdrt_result r;
+    double y[3];
+    if (!out) return KDRT_ERROR_NULL_ARGUMENT;
+    if (!scene || !point) {
+        memset(out, 0, sizeof *out);
+        out->triangle = out->instance = KDRT_INVALID_ID, out->distance = INFINITY;
+        return KDRT_ERROR_NULL_ARGUMENT;
+    }
+    r = kdrt__closest_start(point, max_distance, out, &best);
+    if (r != KDRT_SUCCESS || mask == 0) return r;
+    y[0] = point[0], y[1] = point[1], y[2] = point[2];
+    if (scene->meshes) {
+        /* The mesh tree numbers its triangles in (geometry ID, triangle) order: the walk's ties
+           go by that number, named afterwards. */
+        kdrt__closest_walk(scene->meshes, NULL, y, point, 1.0, 0.0, mask, 0, &best);
+        if (best.found) {
+            const kdrt__part *part = kdrt__part_of(&scene->meshes->meshes, best.triangle);
+            best.key = part->id, best.triangle -= part->first;
+        }
+    }
+    if (scene->top.nodes) {
+        const kdrt__level_node *nodes = scene->top.nodes;
+        kdrt__level_near stack[KDRT__LEVEL_STACK];
+        uint32_t sp = 0, node = 0, i;
+        int done = 0;
+        if (kdrt__box_distance(y, scene->top.root.min, scene->top.root.max) * KDRT__PRUNE_SLACK >
+            best.distance)
+            done = 1;
+        while (!done) {
+            const kdrt__level_node *n = &nodes[node];
+            const uint32_t pushed = sp;
+            unsigned c;
+            for (c = 0; c < 4u; ++c) {
+                float lo[3], hi[3];
+                double d;
+                uint32_t at;
+                int a;
+                if (n->count[c] == KDRT_INVALID_ID) continue;
+                for (a = 0; a < 3; ++a) lo[a] = n->lo[a][c], hi[a] = n->hi[a][c];
+                d = kdrt__box_distance(y, lo, hi);
+                if (d * KDRT__PRUNE_SLACK > best.distance) continue;
+                /* Farthest first on the stack: the nearest lane is popped next. */
+                at = sp++;
+                while (at > pushed && stack[at - 1u].distance < d) stack[at] = stack[at - 1u], --at;
+                stack[at].first = n->first[c], stack[at].count = n->count[c], stack[at].distance = d;
+            }
+            for (;;) {
+                kdrt__level_near e;
+                if (sp == 0) {
+                    done = 1;
+                    break;
+                }
+                e = stack[--sp];
+                if (e.distance * KDRT__PRUNE_SLACK > best.distance) continue;
+                if (e.count == 0) {
+                    node = e.first;
+                    break;
+                }
+                for (i = 0; i < e.count; ++i) {
+                    const kdrt__instance *in = &scene->now.instances[scene->top.items[e.first + i]];
+                    double z[3], scale, slop;
+                    if (!(in->mask & mask)) continue;
+                    if (kdrt__box_distance(y, in->box.min, in->box.max) * KDRT__PRUNE_SLACK >
+                        best.distance)
+                        continue;
+                    kdrt__instance_point(in, point, z, &scale, &slop);
+                    kdrt__closest_walk(in->tree, in, z, point, scale, slop, 0xFFFFFFFFu, in->id,
+                                       &best);
+                }
+            }
+        }
+    }
+    kdrt__closest_finish(&best, out);
+    return KDRT_SUCCESS;
+}
+
+/* The overlap query q on scene: the mesh tree, then each instance whose world box meets the
+   query's, walked in its space with the query's box carried there (CLOSEST POINT AND OVERLAP). */
+static void kdrt__scene_overlap(const kdrt_scene *scene, kdrt__overlap_query *q)
+{
+    const kdrt__level_node *nodes = scene->top.nodes;
+    uint32_t stack[KDRT__LEVEL_STACK][2];
+    uint32_t sp = 0, i;
+    if (q->mask == 0) return;
+    if (scene->meshes) kdrt__overlap_walk(scene->meshes, NULL, q->lo, q->hi, KDRT_INVALID_ID, q);
+    if (q->stopped || !nodes || !kdrt__boxes_meet(scene->top.root.min, scene->top.root.max, q->lo, q->hi))
+        return;
+    stack[sp][0] = 0, stack[sp][1] = 0, ++sp;
+    while (sp) {
+        const uint32_t first = stack[sp - 1][0], count = stack[sp - 1][1];
+        --sp;
+        if (count == 0) {
+            const kdrt__level_node *n = &nodes[first];
+            unsigned c;
+            for (c = 4u; c-- > 0u;) {
+                float lo[3], hi[3];
+                int a;
+                if (n->count[c] == KDRT_INVALID_ID) continue;
+                for (a = 0; a < 3; ++a) lo[a] = n->lo[a][c], hi[a] = n->hi[a][c];
+                if (!kdrt__boxes_meet(lo, hi, q->lo, q->hi)) continue;
+                KDRT_ASSERT(sp < KDRT__LEVEL_STACK);
+                stack[sp][0] = n->first[c], stack[sp][1] = n->count[c], ++sp;
+            }
+            continue;
+        }
+        for (i = 0; i < count; ++i) {
+            const kdrt__instance *in = &scene->now.instances[scene->top.items[first + i]];
+            double lo[3], hi[3], slop, big = 0.0;
+            float olo[3], ohi[3], wlo[3], whi[3];
+            int a, k;
+            if (!(in->mask & q->mask) || !kdrt__boxes_meet(in->box.min, in->box.max, q->lo, q->hi))
+                continue;
+            /* The query's box cut by the instance's, its corners carried into the tree's space,
+               and their box widened by where R^-1 can take the rounding of the world corners
+               (slop) and of this transform (2^-50 of the sums): no triangle the world box meets
+               has all of its preimage outside. */
+            for (a = 0; a < 3; ++a) {
+                wlo[a] = q->lo[a] > in->box.min[a] ? q->lo[a] : in->box.min[a];
+                whi[a] = q->hi[a] < in->box.max[a] ? q->hi[a] : in->box.max[a];
+                lo[a] = INFINITY, hi[a] = -INFINITY;
+            }
+            slop = kdrt__instance_slop(in);
+            for (k = 0; k < 8; ++k) {
+                const double x0 = (double)(k & 1 ? whi[0] : wlo[0]) - in->to_world[3];
+                const double x1 = (double)(k & 2 ? whi[1] : wlo[1]) - in->to_world[7];
+                const double x2 = (double)(k & 4 ? whi[2] : wlo[2]) - in->to_world[11];
+                for (a = 0; a < 3; ++a) {
+                    const double *r = &in->to_object[3 * a];
+                    const double y = r[0] * x0 + r[1] * x1 + r[2] * x2;
+                    lo[a] = y < lo[a] ? y : lo[a], hi[a] = y > hi[a] ? y : hi[a];
+                }
+            }
+            for (a = 0; a < 3; ++a) {
+                const double t = fabs(in->to_world[4 * a + 3]);
+                const double w = (fabs(wlo[a]) > fabs(whi[a]) ? fabs(wlo[a]) : fabs(whi[a])) + t;
+                big = w > big ? w : big;
+            }
+            for (a = 0; a < 3; ++a) {
+                const double *r = &in->to_object[3 * a];
+                const double row = fabs(r[0]) + fabs(r[1]) + fabs(r[2]);
+                const double pad = row * (slop + 2.0 * 8.881784197001252e-16 /* 2^-50 */ * big);
+                olo[a] = kdrt__float_down(lo[a] - pad), ohi[a] = kdrt__float_up(hi[a] + pad);
+            }
+            kdrt__overlap_walk(in->tree, in, olo, ohi, in->id, q);
+            if (q->stopped) return;
+        }
+    }
+}
+
+KDRT_API kdrt_result kdrt_scene_overlap_box(const kdrt_scene *scene, const kdrt_aabb *box,
+                                            uint32_t mask, kdrt_overlap_fn callback, void *user,
+                                            uint64_t *out_count)
+{
+    kdrt__overlap_query q;
+    kdrt_result r;
+    int empty;
+    if (out_count) *out_count = 0;
+    if (!scene || !box) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__overlap_setup_box(box, &q, &empty);
+    if (r != KDRT_SUCCESS || empty) return r;
+    q.callback = callback, q.user = user, q.mask = mask;
+    kdrt__scene_overlap(scene, &q);
+    if (out_count) *out_count = q.count;
+    return KDRT_SUCCESS;
+}
+
+KDRT_API kdrt_result kdrt_scene_overlap_sphere(const kdrt_scene *scene, const float center[3],
+                                               float radius, uint32_t mask,
+                                               kdrt_overlap_fn callback, void *user,
+                                               uint64_t *out_count)
+{
+    kdrt__overlap_query q;
+    kdrt_result r;
+    if (out_count) *out_count = 0;
+    if (!scene || !center) return KDRT_ERROR_NULL_ARGUMENT;
+    r = kdrt__overlap_setup_sphere(center, radius, &q);
+    if (r != KDRT_SUCCESS) return r;
+    q.callback = callback, q.user = user, q.mask = mask;
+    kdrt__scene_overlap(scene, &q);
+    if (out_count) *out_count = q.count;
+    return KDRT_SUCCESS;
 }
 
 /* ==== optics: reflection, refraction, Fresnel reflectance ==== */
