@@ -459,7 +459,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             // Stopped after some: the count includes the stopping call, the reports are some of all.
             Collected part;
             part.stop_after = in.ConsumeIntegralInRange<size_t>(1, 4);
-            if (in.ConsumeBool()) part.reenter = tree, part.point = q;
+            if (in.ConsumeBool() && finite) part.reenter = tree, part.point = q;  // (a node's box may come with any q)
             FUZZ_CHECK(run(tree, nullptr, part, n) == KDRT_SUCCESS, "a stopped query failed");
             FUZZ_CHECK(n == std::min<uint64_t>(part.stop_after, got.size()) && n == part.found.size(),
                        "stopped after %zu of %zu: count %llu, %zu calls", part.stop_after, got.size(), (unsigned long long)n,
