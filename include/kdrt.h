@@ -6725,10 +6725,10 @@ static double kdrt__origin_segment(const double S[3], const double e[3], const d
    point's own frame so that the error is bounded by the size of the triangle seen from the
    point, not from the origin: the corners moved by -point in double (one rounding each); the
    point's foot on the plane is inside when the three signed areas it makes with the edges,
-   (B x (C - B)) . n and its turns (n = (B - A) x (C - A)), are all at least 0, and the distance
-   is then |n . A| / |n|; otherwise it is the nearest of the three edges. The cross products are
-   formed by fma with one rounding a component, so slivers keep their normals. Error: see
-   CLOSEST POINT AND OVERLAP. */
+   (B x (C - B)) . n and its turns (n = (B - A) x (C - A)), are at least 0 and not all 0, and
+   the distance is then |n . A| / |n|; otherwise it is the nearest of the three edges. The cross
+   products are formed by fma with one rounding a component, so slivers keep their normals.
+   Error: see CLOSEST POINT AND OVERLAP. */
 static double kdrt__point_triangle(float c[3][3], const float point[3], double *u, double *v)
 {
     double A[3], B[3], C[3], e0[3], e1[3], e2[3], n[3], m[3], nn, d, t, best, bu, bv;
@@ -6749,7 +6749,9 @@ static double kdrt__point_triangle(float c[3][3], const float point[3], double *
         lb = kdrt__dot3(m, n);
         kdrt__cross_accurate(A, e0, m);
         lc = kdrt__dot3(m, n);
-        if (la >= 0.0 && lb >= 0.0 && lc >= 0.0) {
+        /* All three 0 (a point on a corner, with an edge the rounding turned parallel to
+           another): no barycentrics from them, the edges decide. */
+        if (la >= 0.0 && lb >= 0.0 && lc >= 0.0 && la + lb + lc > 0.0) {
             const double s = la + lb + lc;
             *u = lb / s, *v = lc / s;
             return fabs(kdrt__dot3(n, A)) / sqrt(nn);

@@ -285,6 +285,29 @@ TEST_CASE("closest point: exact answers where they are exact", "[closest]") {
     CHECK(c.distance == INFINITY);
 }
 
+TEST_CASE("closest point: a corner of a triangle whose rounding makes its areas all 0", "[closest]") {
+    // Found by fuzz_queries: from the corner p0, the edge p2 - p1 rounds to -(p1 - p0) (the 1e5
+    // swallows the rest), so all three signed areas come out 0, and their sum was a divisor:
+    // NaN barycentrics. The edges decide such a point now.
+    const float pos[] = {-0x1.8p-101f, -0x1.8p-101f, 0x1p-102f,  -0x1.cp-100f, -0x1.8p-101f, 0x1.86a0a6p+16f,
+                         -0x1.8p-101f, -0x1.8p-101f, -0x1.4p-100f};
+    kdrt_triangles view{};
+    view.positions = pos, view.vertex_count = 3, view.triangle_count = 1;
+    kdrt_tree *raw = nullptr;
+    REQUIRE(kdrt_tree_build(&view, nullptr, &raw, nullptr) == KDRT_SUCCESS);
+    kt::TreePtr tree(raw);
+    for (int k = 0; k < 3; ++k) {
+        kdrt_closest c;
+        REQUIRE(kdrt_closest_point(tree.get(), pos + 3 * k, 0.0f, &c) == KDRT_SUCCESS);
+        INFO("corner " << k);
+        CHECK(c.triangle == 0);
+        CHECK(c.distance == 0.0f);
+        CHECK(c.u == (k == 1 ? 1.0f : 0.0f));
+        CHECK(c.v == (k == 2 ? 1.0f : 0.0f));
+        for (int a = 0; a < 3; ++a) CHECK(c.point[a] == pos[3 * k + a]);
+    }
+}
+
 TEST_CASE("closest point: refused and empty queries", "[closest]") {
     kt::TreePtr tree = kt::build(kt::random_soup(20, 1), 4);
     const float nan = std::numeric_limits<float>::quiet_NaN(), inf = INFINITY;

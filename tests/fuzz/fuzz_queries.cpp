@@ -212,7 +212,9 @@ void check_closest(const std::vector<WorldTri> &tris, const float q[3], float ma
         FUZZ_CHECK(c.instance == got->instance, "%s: instance %u, not %u", what, c.instance, got->instance);
         FUZZ_CHECK(c.distance <= max_distance, "%s: distance %a beyond max_distance %a", what, c.distance, max_distance);
         FUZZ_CHECK(c.distance >= 0, "%s: distance %a", what, c.distance);
-        FUZZ_CHECK(c.u >= 0 && c.v >= 0 && c.u + c.v <= 1.0f + 1e-6f, "%s: barycentrics %a %a", what, c.u, c.v);
+        FUZZ_CHECK(c.u >= 0 && c.v >= 0 && c.u + c.v <= 1.0f + 1e-6f, "%s: barycentrics %a %a on %u/%u %s %s %s at %a", what, c.u,
+                   c.v, c.geometry, c.triangle, text(got->world.p[0]).c_str(), text(got->world.p[1]).c_str(),
+                   text(got->world.p[2]).c_str(), c.distance);
         for (int a = 0; a < 3; ++a) {
             const float lo = std::min({got->world.p[0][a], got->world.p[1][a], got->world.p[2][a]});
             const float hi = std::max({got->world.p[0][a], got->world.p[1][a], got->world.p[2][a]});
