@@ -2,7 +2,8 @@
 // kdrt_overlap_sphere and their scene forms) on a small tree, the tree of leaf size 0 over the
 // same triangles, and a scene of them as a mesh and the tree as an instance.
 // The mesh: up to 12 triangles, their corners on a grid of quarters (shared planes, edges and
-// vertices) scaled by 2^-100, 2^-66, 1, 2^66 or 2^100, or sometimes any floats; any builder,
+// vertices) scaled by 2^-100, 2^-66, 1, 2^66 or 2^100, sometimes a little off it (slivers, near
+// misses), sometimes any floats; any builder,
 // quality, leaf size and kernel. The instance's transform: identity, a translation, a non-uniform
 // scale, a mirror, a shear, a quarter turn or a mix, all of them dyadic, so the world's corners
 // are exact. The queries: points, boxes and balls on the same grid (vertices, points of edges,
@@ -14,10 +15,11 @@
 // is the callback's calls, the stopping one included; the closest triangle is the lowest index
 // (geometry ID) among those with its very corners; its point lies in its box; queries allocate
 // nothing. On the grid (where point_oracle.hpp's brute force is exact): the box sets equal the
-// brute force's, the ball sets agree with it wherever a triangle is farther from the sphere than
-// the closest-point bound, and the distance is within the bound (CLOSEST POINT AND OVERLAP) of
-// the true one, the triangle named a nearest one within it; for the scene, against every world
-// triangle.
+// brute force's; there, or with coordinates within 2^28 of each other (its distances exact but
+// for the last roundings): the ball sets agree with it wherever a triangle is farther from the
+// sphere than the closest-point bound, and the distance is within the bound (CLOSEST POINT AND
+// OVERLAP) of the true one, the triangle named a nearest one within it; for the scene, against
+// every world triangle.
 #include "kdrt.h"
 #include "fuzz_support.hpp"
 #include "../point_oracle.hpp"
