@@ -14,6 +14,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdlib>
@@ -164,8 +165,13 @@ std::vector<std::array<float, 3>> points_for(const std::vector<Tri> &tris, const
     return pts;
 }
 
+// How many points, boxes or balls a check draws: count at the default KDRT_TEST_RAYS (100,000),
+// in proportion to it otherwise (the sanitizer build's 20,000: a fifth), never under a fifth.
+size_t drawn_count(size_t count) { return std::max(count / 5, count * kt::reference_ray_count() / 100000); }
+
 // Every builder and leaf size on mesh: each answer against the brute force and against leaf size 0.
 void check_mesh(const common::Mesh &mesh, size_t count, uint32_t seed) {
+    count = drawn_count(count);
     const std::vector<Tri> tris = triangles_of(mesh);
     kt::TreePtr scan = kt::build(mesh, 0);
     const std::vector<std::array<float, 3>> pts = points_for(tris, scan.get(), count, seed);
@@ -404,7 +410,7 @@ TEST_CASE("closest point: scenes with instances, masks and disabled entries", "[
             REQUIRE(kdrt_scene_enable(scene.get(), disabled, 0) == KDRT_SUCCESS);
             REQUIRE(kdrt_scene_commit(scene.get()) == KDRT_SUCCESS);
         }
-        for (int i = 0; i < 300; ++i) {
+        for (int i = 0; i < int(drawn_count(300)); ++i) {
             float q[3];
             if (i % 3 == 0) {
                 const Placed &p = world[rng.below(uint32_t(world.size()))];
