@@ -94,7 +94,8 @@
      No global state. The functions taking a const kdrt_tree read it only, allocate nothing and
      may be called from any number of threads at once (kdrt_intersect(), kdrt_occluded(),
      kdrt_intersect_k(), the _query variants, the inspection functions, kdrt_hit_surface(),
-     kdrt_spawn_ray()); kdrt_tree_free() must wait until none is running. Builds of different
+     kdrt_spawn_ray(), kdrt_closest_point(), kdrt_overlap_box(), kdrt_overlap_sphere());
+     kdrt_tree_free() must wait until none is running. Builds of different
      trees may run at once, and one SAH build may run its tasks on many threads through
      options.scheduler, which then calls options.allocator from those threads. kdrt_tree_save()
      reads a const tree (and its mesh buffers) and may run beside queries and other saves; loads
@@ -538,6 +539,63 @@
      8], then a[i mod 8] adds to b[i mod 8], 32-bit and wrapping; it ends as XXH64 of a[0..7] and
      b[0..7] (32-bit words) and the number of words (uint64), 72 bytes. A reader of another
      version or byte order stops at its field; a newer version would change the number at 12.
+
+   CLOSEST POINT AND OVERLAP
+     Beyond rays, the same trees and scenes answer two spatial queries, with no extra memory:
+     kdrt_closest_point() gives the nearest point of any triangle to a point (its triangle,
+     barycentrics, distance), within max_distance (closed; INFINITY: anywhere); nothing
+     (triangle KDRT_INVALID_ID, distance INFINITY) when no triangle is that near. Equal distances
+     go to the lower triangle index, so every builder, leaf size and kernel returns what
+     max_leaf_size = 0 returns, bit for bit. kdrt_overlap_box() and kdrt_overlap_sphere() call a
+     callback once for each triangle that meets a closed box or ball, each triangle once, in no
+     particular order, and count them; a callback returning 0 stops the query, and the count
+     includes the triangle it stopped at. A box with min > max on an axis is empty, a flat one
+     (min == max) is a rectangle, a segment or a point, an infinite bound a half-space; a radius
+     of 0 is the centre alone, INFINITY every triangle. A NaN or infinite point or centre, a NaN
+     or negative max_distance or radius, or a NaN bound is refused (KDRT_ERROR_INVALID_QUERY:
+     nothing found, counted or called).
+     Distance. Computed in double in the point's own frame (the corners moved by -point), by
+     Ericson's regions with cross products formed by fma, then rounded to float once: with D the
+     true distance to the nearest triangle and R the largest distance from the point to a corner
+     of the triangles compared (the one returned and a truly nearest one), the distance returned
+     is D give or take 2^-44 R, rounded to the nearest float, so |d - D| <= 2^-24 D + 2^-44 R
+     (D a normal float; one beyond the largest float is INFINITY, its triangle still named). A
+     point on a triangle gets 0 or at most 2^-44 of its reach; one off the surface, D to within
+     float rounding. The triangle returned is a nearest one within that bound, and point is
+     (1 - u - v) p0 + u p1 + v p2 on it, rounded to float inside its corners' box. The walk
+     visits the nearer child first and skips nodes and triangles whose boxes lie farther than the
+     best so far, with a margin of 2^-40 that rounding cannot cross.
+     Boxes are decided exactly: the separating axis test of the triangle and the box (the box's
+     3 axes, the triangle's normal, its 3 edges crossed with the 3 box axes; Akenine-Moeller
+     2001) where each axis' verdict is exact: float comparisons on the box's axes, and on the
+     others the sign of a sum of products of floats, taken from the sum in double when its error
+     bound allows and otherwise from the exact sum (Shewchuk's expansions, as in orient3d). A
+     triangle touching the box at a corner, along an edge or in a face meets it; one a float
+     beyond it does not. Balls: a corner in the ball decides exactly (|p - c|^2 <= r^2 summed
+     exactly), else the distance above is compared with the radius, so only an edge or a face
+     within that bound of the sphere may go either way.
+     Scenes: kdrt_scene_closest_point() and kdrt_scene_overlap_box() / _sphere() take a mask (as
+     kdrt_query.mask: enabled geometries sharing a bit with it) and measure in the world. Ties
+     go to the lower geometry ID, then the lower triangle; a report names the geometry, the
+     triangle in its mesh and the instance. An instance's triangle is its tree's with each
+     corner carried by the transform in double and rounded to float, and the guarantees above
+     hold for those world triangles (one flattened by rounding is still tested, as a segment or
+     a point). Under a non-uniform scale or a shear the nearest triangle in the tree's space is
+     not always the nearest in the world, and the walk does not assume it: a node's world
+     distance is bounded below by its distance in the tree's space over the Frobenius norm of
+     the inverse transform, less the rounding. A box or ball goes into an instance's space as
+     the box round its corners there (widened by the rounding), and what that box finds is
+     tested in the world.
+     Cost. A closest point near the surface costs a descent and a leaf or two; the farther the
+     point from every triangle, the more nodes lie about as far as the best and are visited.
+     An overlap query visits the leaves its box meets and tests their triangles once each; a
+     triangle referred to by several leaves (crossing a split plane) and reaching past the
+     split faces of the leaf found in is reported only by the first of them in node order, which
+     a second descent from the root, bounded by the triangle's box, finds: big triangles under
+     big queries cost that descent each. The queries allocate nothing (their walks' stacks, of
+     KDRT_MAX_DEPTH + 1 nodes with their boxes, take about 4 KB of the caller's) and may run
+     from any number of threads; the callback runs on the calling thread and may query the same
+     tree or scene, not change it.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -7903,10 +7961,10 @@ static KDRT__FORCEINLINE double kdrt__origin_segment(const double S[3], const do
    point's own frame so that the error is bounded by the size of the triangle seen from the
    point, not from the origin: the corners moved by -point in double (one rounding each); the
    point's foot on the plane is inside when the three signed areas it makes with the edges,
-   (B x (C - B)) . n and its turns (n = (B - A) x (C - A)), are all at least 0, and the distance
-   is then |n . A| / |n|; otherwise it is the nearest of the three edges. The cross products are
-   formed by fma with one rounding a component, so slivers keep their normals. Error: see
-   CLOSEST POINT AND OVERLAP. */
+   (B x (C - B)) . n and its turns (n = (B - A) x (C - A)), are at least 0 and not all 0, and
+   the distance is then |n . A| / |n|; otherwise it is the nearest of the three edges. The cross
+   products are formed by fma with one rounding a component, so slivers keep their normals.
+   Error: see CLOSEST POINT AND OVERLAP. */
 static KDRT__FORCEINLINE double kdrt__point_triangle(float c[3][3], const float point[3], double *u,
                                                      double *v)
 {
@@ -7928,7 +7986,9 @@ static KDRT__FORCEINLINE double kdrt__point_triangle(float c[3][3], const float 
         lb = kdrt__dot3(m, n);
         kdrt__cross_accurate(A, e0, m);
         lc = kdrt__dot3(m, n);
-        if (la >= 0.0 && lb >= 0.0 && lc >= 0.0) {
+        /* All three 0 (a point on a corner, with an edge the rounding turned parallel to
+           another): no barycentrics from them, the edges decide. */
+        if (la >= 0.0 && lb >= 0.0 && lc >= 0.0 && la + lb + lc > 0.0) {
             const double s = la + lb + lc;
             *u = lb / s, *v = lc / s;
             return fabs(kdrt__dot3(n, A)) / sqrt(nn);

@@ -1,5 +1,5 @@
 // The brute-force references for kdrt_closest_point() and the overlap queries (test_closest.cpp,
-// test_overlap.cpp, fuzz/fuzz_closest.cpp): every triangle, in quadruple precision where the
+// test_overlap.cpp, fuzz/fuzz_queries.cpp): every triangle, in quadruple precision where the
 // compiler has it (__float128: 113 bits, so the products and differences of floats these tests
 // draw are exact), else long double. Written apart from kdrt.h's code and in other ways:
 //  - the distance to a triangle is the least over the points that can be nearest: its corners,

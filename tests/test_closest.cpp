@@ -14,8 +14,10 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <limits>
@@ -163,8 +165,13 @@ std::vector<std::array<float, 3>> points_for(const std::vector<Tri> &tris, const
     return pts;
 }
 
+// How many points, boxes or balls a check draws: count at the default KDRT_TEST_RAYS (100,000),
+// in proportion to it otherwise (the sanitizer build's 20,000: a fifth), never under a fifth.
+size_t drawn_count(size_t count) { return std::max(count / 5, count * kt::reference_ray_count() / 100000); }
+
 // Every builder and leaf size on mesh: each answer against the brute force and against leaf size 0.
 void check_mesh(const common::Mesh &mesh, size_t count, uint32_t seed) {
+    count = drawn_count(count);
     const std::vector<Tri> tris = triangles_of(mesh);
     kt::TreePtr scan = kt::build(mesh, 0);
     const std::vector<std::array<float, 3>> pts = points_for(tris, scan.get(), count, seed);
@@ -284,6 +291,29 @@ TEST_CASE("closest point: exact answers where they are exact", "[closest]") {
     CHECK(c.distance == INFINITY);
 }
 
+TEST_CASE("closest point: a corner of a triangle whose rounding makes its areas all 0", "[closest]") {
+    // Found by fuzz_queries: from the corner p0, the edge p2 - p1 rounds to -(p1 - p0) (the 1e5
+    // swallows the rest), so all three signed areas come out 0, and their sum was a divisor:
+    // NaN barycentrics. The edges decide such a point now.
+    const float pos[] = {-0x1.8p-101f, -0x1.8p-101f, 0x1p-102f,  -0x1.cp-100f, -0x1.8p-101f, 0x1.86a0a6p+16f,
+                         -0x1.8p-101f, -0x1.8p-101f, -0x1.4p-100f};
+    kdrt_triangles view{};
+    view.positions = pos, view.vertex_count = 3, view.triangle_count = 1;
+    kdrt_tree *raw = nullptr;
+    REQUIRE(kdrt_tree_build(&view, nullptr, &raw, nullptr) == KDRT_SUCCESS);
+    kt::TreePtr tree(raw);
+    for (int k = 0; k < 3; ++k) {
+        kdrt_closest c;
+        REQUIRE(kdrt_closest_point(tree.get(), pos + 3 * k, 0.0f, &c) == KDRT_SUCCESS);
+        INFO("corner " << k);
+        CHECK(c.triangle == 0);
+        CHECK(c.distance == 0.0f);
+        CHECK(c.u == (k == 1 ? 1.0f : 0.0f));
+        CHECK(c.v == (k == 2 ? 1.0f : 0.0f));
+        for (int a = 0; a < 3; ++a) CHECK(c.point[a] == pos[3 * k + a]);
+    }
+}
+
 TEST_CASE("closest point: refused and empty queries", "[closest]") {
     kt::TreePtr tree = kt::build(kt::random_soup(20, 1), 4);
     const float nan = std::numeric_limits<float>::quiet_NaN(), inf = INFINITY;
@@ -380,7 +410,7 @@ TEST_CASE("closest point: scenes with instances, masks and disabled entries", "[
             REQUIRE(kdrt_scene_enable(scene.get(), disabled, 0) == KDRT_SUCCESS);
             REQUIRE(kdrt_scene_commit(scene.get()) == KDRT_SUCCESS);
         }
-        for (int i = 0; i < 300; ++i) {
+        for (int i = 0; i < int(drawn_count(300)); ++i) {
             float q[3];
             if (i % 3 == 0) {
                 const Placed &p = world[rng.below(uint32_t(world.size()))];
@@ -458,4 +488,161 @@ TEST_CASE("closest point: a non-uniform scale, where the object-space answer is 
     CHECK(c.distance == 1.5f);
     CHECK(c.point[1] == 1.5f);
     kdrt_scene_free(sraw);
+}
+
+// ---- ties, range and allocation ----
+
+namespace {
+
+struct SceneFree {
+    void operator()(kdrt_scene *s) const { kdrt_scene_free(s); }
+};
+
+// Counts the allocator's calls (as test_batch.cpp's).
+struct CountingAllocator {
+    size_t calls = 0, frees = 0;
+    kdrt_allocator hooks() {
+        kdrt_allocator a;
+        a.alloc = &CountingAllocator::alloc_cb, a.free = &CountingAllocator::free_cb, a.user = this;
+        return a;
+    }
+    static void *alloc_cb(void *user, size_t size) {
+        ++static_cast<CountingAllocator *>(user)->calls;
+        return std::malloc(size ? size : 1);
+    }
+    static void free_cb(void *user, void *ptr) {
+        ++static_cast<CountingAllocator *>(user)->frees;
+        std::free(ptr);
+    }
+};
+
+int count_and_query(void *user, const kdrt_overlap *) {
+    // A query from inside the callback, as the declaration allows.
+    const kdrt_tree *tree = static_cast<const kdrt_tree *>(user);
+    const float p[3] = {0.5f, 0.5f, 0.5f};
+    kdrt_closest c;
+    return kdrt_closest_point(tree, p, INFINITY, &c) == KDRT_SUCCESS;
+}
+
+}  // namespace
+
+TEST_CASE("closest point: ties go to the lower triangle, then the lower geometry ID", "[closest][scene]") {
+    // Triangles 0 and 2 are one triangle twice, 1 another one far away; a
+    // mesh of them (ID 9) and the tree of them placed twice as it is (IDs 7 and 5): every
+    // distance is tied three ways in the scene and two ways in each.
+    const float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5};
+    const uint32_t idx[] = {0, 1, 2, 3, 4, 5, 0, 1, 2};
+    kdrt_triangles view{};
+    view.positions = pos, view.vertex_count = 6, view.indices = idx, view.triangle_count = 3;
+    const float q[3] = {0.25f, 0.25f, 0.5f};
+    for (const kt::Builder &b : kt::kBuilders)
+        for (uint32_t leaf : {0u, 1u, 4u}) {
+            kdrt_build_options o = kdrt_default_build_options();
+            o.builder = b.builder, o.quality = b.quality, o.max_leaf_size = leaf;
+            kdrt_tree *raw = nullptr;
+            REQUIRE(kdrt_tree_build(&view, &o, &raw, nullptr) == KDRT_SUCCESS);
+            kt::TreePtr tree(raw);
+            kdrt_closest c;
+            REQUIRE(kdrt_closest_point(tree.get(), q, INFINITY, &c) == KDRT_SUCCESS);
+            CHECK(c.triangle == 0);
+            CHECK(c.distance == 0.5f);
+            std::vector<kdrt_geometry> geos = {kdrt_mesh_geometry(9, &view), kdrt_instance_geometry(7, tree.get(), nullptr),
+                                               kdrt_instance_geometry(5, tree.get(), nullptr)};
+            geos[2].mask = 2;
+            kdrt_scene *sraw = nullptr;
+            REQUIRE(kdrt_scene_build(geos.data(), 3, &o, &sraw, nullptr) == KDRT_SUCCESS);
+            std::unique_ptr<kdrt_scene, SceneFree> scene(sraw);
+            REQUIRE(kdrt_scene_closest_point(scene.get(), q, INFINITY, 0xFFFFFFFFu, &c) == KDRT_SUCCESS);
+            CHECK(c.geometry == 5);
+            CHECK(c.instance == 5);
+            CHECK(c.triangle == 0);
+            REQUIRE(kdrt_scene_closest_point(scene.get(), q, INFINITY, 1, &c) == KDRT_SUCCESS);  // 5 masked out
+            CHECK(c.geometry == 7);
+            CHECK(c.triangle == 0);
+            REQUIRE(kdrt_scene_enable(scene.get(), 7, 0) == KDRT_SUCCESS);
+            REQUIRE(kdrt_scene_commit(scene.get()) == KDRT_SUCCESS);
+            REQUIRE(kdrt_scene_closest_point(scene.get(), q, INFINITY, 1, &c) == KDRT_SUCCESS);  // the mesh's turn
+            CHECK(c.geometry == 9);
+            CHECK(c.instance == KDRT_INVALID_ID);
+            CHECK(c.triangle == 0);
+            // The overlap queries report each of the tied triangles, each once.
+            uint64_t n = 0;
+            const kdrt_aabb box = {{0, 0, 0}, {0.5f, 0.5f, 0}};
+            REQUIRE(kdrt_scene_overlap_box(scene.get(), &box, 0xFFFFFFFFu, nullptr, nullptr, &n) == KDRT_SUCCESS);
+            CHECK(n == 4);  // triangles 0 and 2 of the mesh and of instance 5 (7 is disabled)
+            // The mesh disabled too: mask 1 sees nothing, mask 2 instance 5 alone.
+            REQUIRE(kdrt_scene_enable(scene.get(), 9, 0) == KDRT_SUCCESS);
+            REQUIRE(kdrt_scene_commit(scene.get()) == KDRT_SUCCESS);
+            REQUIRE(kdrt_scene_closest_point(scene.get(), q, INFINITY, 1, &c) == KDRT_SUCCESS);
+            CHECK(c.triangle == KDRT_INVALID_ID);
+            REQUIRE(kdrt_scene_overlap_box(scene.get(), &box, 1, nullptr, nullptr, &n) == KDRT_SUCCESS);
+            CHECK(n == 0);
+            REQUIRE(kdrt_scene_overlap_box(scene.get(), &box, 0xFFFFFFFFu, nullptr, nullptr, &n) == KDRT_SUCCESS);
+            CHECK(n == 2);
+        }
+}
+
+TEST_CASE("closest point: distances beyond float's range", "[closest]") {
+    // A triangle near -3e38 and a point at +3e38: about 6e38 apart, beyond the largest float.
+    const float big = 3e38f, pos[] = {-big, -big, 0, -big, 0, 0, -big, -big, 1e38f};
+    kdrt_triangles view{};
+    view.positions = pos, view.vertex_count = 3, view.triangle_count = 1;
+    kdrt_tree *raw = nullptr;
+    REQUIRE(kdrt_tree_build(&view, nullptr, &raw, nullptr) == KDRT_SUCCESS);
+    kt::TreePtr tree(raw);
+    const float q[3] = {big, -big, 0};
+    kdrt_closest c;
+    REQUIRE(kdrt_closest_point(tree.get(), q, INFINITY, &c) == KDRT_SUCCESS);
+    CHECK(c.triangle == 0);
+    CHECK(c.distance == INFINITY);
+    CHECK(c.point[0] == -big);
+    REQUIRE(kdrt_closest_point(tree.get(), q, std::numeric_limits<float>::max(), &c) == KDRT_SUCCESS);
+    CHECK(c.triangle == KDRT_INVALID_ID);
+    // Just within the largest float: found, finite.
+    const float near_q[3] = {0, -big, 0};
+    REQUIRE(kdrt_closest_point(tree.get(), near_q, std::numeric_limits<float>::max(), &c) == KDRT_SUCCESS);
+    CHECK(c.triangle == 0);
+    CHECK(c.distance == big);
+}
+
+TEST_CASE("closest point and overlap: the queries allocate nothing", "[closest][overlap][alloc]") {
+    const common::Mesh mesh = kt::sphere(12, 18, 2.0), ground = kt::translated(kt::grid(8, 8, 5), -4, -4, -3);
+    CountingAllocator counter;
+    kdrt_build_options o = kdrt_default_build_options();
+    o.allocator = counter.hooks();
+    const kdrt_triangles view = mesh.view();
+    kdrt_tree *tree = nullptr;
+    REQUIRE(kdrt_tree_build(&view, &o, &tree, nullptr) == KDRT_SUCCESS);
+    const float shear[12] = {1, 0.5f, 0, 6, 0, 2, 0, 0, 0, 0, -1, 1};
+    std::vector<kdrt_geometry> entries = {kdrt_mesh_geometry(1, nullptr), kdrt_instance_geometry(3, tree, shear)};
+    entries[0].mesh = ground.view();
+    kdrt_scene *scene = nullptr;
+    REQUIRE(kdrt_scene_build(entries.data(), uint32_t(entries.size()), &o, &scene, nullptr) == KDRT_SUCCESS);
+    const size_t calls = counter.calls, frees = counter.frees;
+    common::Rng rng(3);
+    uint64_t total = 0;
+    for (int i = 0; i < 200; ++i) {
+        float p[3];
+        for (float &x : p) x = float(rng.range(-8, 8));
+        const float r = float(rng.range(0, 3));
+        const kdrt_aabb box = {{p[0] - r, p[1] - r, p[2]}, {p[0] + r, p[1], p[2] + r}};
+        kdrt_closest c;
+        uint64_t n = 0;
+        REQUIRE(kdrt_closest_point(tree, p, INFINITY, &c) == KDRT_SUCCESS);
+        REQUIRE(kdrt_scene_closest_point(scene, p, i % 2 ? INFINITY : r, 0xFFFFFFFFu, &c) == KDRT_SUCCESS);
+        REQUIRE(kdrt_overlap_box(tree, &box, count_and_query, tree, &n) == KDRT_SUCCESS);
+        total += n;
+        REQUIRE(kdrt_overlap_sphere(tree, p, r, nullptr, nullptr, &n) == KDRT_SUCCESS);
+        total += n;
+        REQUIRE(kdrt_scene_overlap_box(scene, &box, 0xFFFFFFFFu, count_and_query, tree, &n) == KDRT_SUCCESS);
+        total += n;
+        REQUIRE(kdrt_scene_overlap_sphere(scene, p, r, 0xFFFFFFFFu, nullptr, nullptr, &n) == KDRT_SUCCESS);
+        total += n;
+    }
+    CHECK(total > 200);
+    CHECK(counter.calls == calls);
+    CHECK(counter.frees == frees);
+    kdrt_scene_free(scene);
+    kdrt_tree_free(tree);
+    CHECK(counter.frees == counter.calls);
 }

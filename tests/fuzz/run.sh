@@ -2,7 +2,7 @@
 # Runs kdrt's libFuzzer targets (tests/fuzz) for a bounded time; see --help.
 set -euo pipefail
 
-ALL_TARGETS=(tree optics scene mesh scene_api scene_diff batch load)
+ALL_TARGETS=(tree optics scene mesh scene_api scene_diff batch load queries)
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 build="build-fuzz" seconds=600 jobs=1 targets=()
 
