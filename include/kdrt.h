@@ -553,7 +553,8 @@
      (min == max) is a rectangle, a segment or a point, an infinite bound a half-space; a radius
      of 0 is the centre alone, INFINITY every triangle. A NaN or infinite point or centre, a NaN
      or negative max_distance or radius, or a NaN bound is refused (KDRT_ERROR_INVALID_QUERY:
-     nothing found, counted or called).
+     nothing found, counted or called). Zero-area triangles are left out of a tree (as for rays:
+     kdrt_build_report.degenerate_triangles), so these queries never find them either.
      Distance. Computed in double in the point's own frame (the corners moved by -point), by
      Ericson's regions with cross products formed by fma, then rounded to float once: with D the
      true distance to the nearest triangle and R the largest distance from the point to a corner
