@@ -5,6 +5,7 @@
 // xxHash and a checksum of the test's own); every failing allocation, wrong mesh, other version,
 // other byte order, truncation, extra byte, changed header byte and forged field is refused with
 // its result code and leaves nothing allocated.
+#include "saved_format.hpp"
 #include "test_support.hpp"
 
 #include <catch2/catch.hpp>
@@ -25,56 +26,8 @@ using Bytes = std::vector<unsigned char>;
 
 // ---- the format as the manual describes it, written again here ----
 
-uint64_t rotl(uint64_t x, int r) { return (x << r) | (x >> (64 - r)); }
-uint64_t get64(const unsigned char *p) {
-    uint64_t x = 0;
-    for (int i = 7; i >= 0; --i) x = x << 8 | p[i];
-    return x;
-}
-uint32_t get32(const unsigned char *p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
-void put32(unsigned char *p, uint32_t x) {
-    for (int i = 0; i < 4; ++i) p[i] = (unsigned char)(x >> (8 * i));
-}
-void put64(unsigned char *p, uint64_t x) {
-    for (int i = 0; i < 8; ++i) p[i] = (unsigned char)(x >> (8 * i));
-}
-
-// XXH64 with seed 0, byte by byte from its specification.
-uint64_t xxh64(const unsigned char *p, size_t n) {
-    const uint64_t P1 = 0x9E3779B185EBCA87ull, P2 = 0xC2B2AE3D27D4EB4Full, P3 = 0x165667B19E3779F9ull,
-                   P4 = 0x85EBCA77C2B2AE63ull, P5 = 0x27D4EB2F165667C5ull;
-    auto round = [&](uint64_t acc, uint64_t in) { return rotl(acc + in * P2, 31) * P1; };
-    const unsigned char *end = p + n;
-    uint64_t h;
-    if (n >= 32) {
-        uint64_t v[4] = {P1 + P2, P2, 0, 0 - P1};
-        for (; p + 32 <= end; p += 32)
-            for (int k = 0; k < 4; ++k) v[k] = round(v[k], get64(p + 8 * k));
-        h = rotl(v[0], 1) + rotl(v[1], 7) + rotl(v[2], 12) + rotl(v[3], 18);
-        for (int k = 0; k < 4; ++k) h = (h ^ round(0, v[k])) * P1 + P4;
-    } else {
-        h = P5;
-    }
-    h += n;
-    for (; p + 8 <= end; p += 8) h = rotl(h ^ round(0, get64(p)), 27) * P1 + P4;
-    if (p + 4 <= end) h = rotl(h ^ uint64_t(get32(p)) * P1, 23) * P2 + P3, p += 4;
-    for (; p < end; ++p) h = rotl(h ^ *p * P5, 11) * P1;
-    h ^= h >> 33, h *= P2, h ^= h >> 29, h *= P3;
-    return h ^ (h >> 32);
-}
-
-// The sections' checksum: eight 32-bit Fletcher lanes, ended by XXH64.
-uint64_t sections_sum(const unsigned char *p, size_t bytes) {
-    uint32_t a[8] = {}, b[8] = {};
-    const size_t words = bytes / 4;
-    for (size_t i = 0; i < words; ++i) a[i % 8] += get32(p + 4 * i), b[i % 8] += a[i % 8];
-    unsigned char end[72];
-    for (int k = 0; k < 8; ++k) put32(end + 4 * k, a[k]), put32(end + 32 + 4 * k, b[k]);
-    put64(end + 64, words);
-    return xxh64(end, sizeof end);
-}
-
-constexpr size_t kHeader = 256, kMeshRecord = 32;
+// (saved_format.hpp: the words, XXH64 and the sections' checksum, as the manual gives them)
+using namespace saved_format;
 
 struct Layout {
     uint32_t meshes, nodes, leaves, blocks;
@@ -93,12 +46,7 @@ Layout layout(const Bytes &f) {
 }
 
 // A forged file: the checksums made again over whatever the bytes now say.
-void reseal(Bytes &f) {
-    const Layout l = layout(f);
-    put64(&f[192], xxh64(&f[l.meshes_at], kMeshRecord * l.meshes));
-    put64(&f[200], sections_sum(&f[kHeader], l.meshes_at - kHeader));
-    put64(&f[248], xxh64(f.data(), 248));
-}
+void reseal(Bytes &f) { saved_format::reseal(f.data(), f.size()); }
 
 // ---- saving and loading ----
 

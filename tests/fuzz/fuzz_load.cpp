@@ -20,6 +20,7 @@
 #include "kdrt.h"
 #ifndef FUZZ_LOAD_WRITE_SEEDS
 #include "fuzz_support.hpp"
+#include "../saved_format.hpp"
 #else
 #include <cstdio>
 #include <cstdlib>
@@ -123,56 +124,9 @@ struct Heap {
 
 bool same_hit(const kdrt_hit &a, const kdrt_hit &b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-// The format's hashes, as the manual gives them (tests/test_save.cpp checks them against saves).
-uint64_t rotl(uint64_t x, int r) { return (x << r) | (x >> (64 - r)); }
-uint32_t get32(const unsigned char *p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
-uint64_t get64(const unsigned char *p) { return uint64_t(get32(p)) | uint64_t(get32(p + 4)) << 32; }
-void put64(unsigned char *p, uint64_t x) {
-    for (int i = 0; i < 8; ++i) p[i] = (unsigned char)(x >> (8 * i));
-}
-uint64_t xxh64(const unsigned char *p, size_t n) {
-    const uint64_t P1 = 0x9E3779B185EBCA87ull, P2 = 0xC2B2AE3D27D4EB4Full, P3 = 0x165667B19E3779F9ull,
-                   P4 = 0x85EBCA77C2B2AE63ull, P5 = 0x27D4EB2F165667C5ull;
-    auto round = [&](uint64_t acc, uint64_t in) { return rotl(acc + in * P2, 31) * P1; };
-    const unsigned char *end = p + n;
-    uint64_t h;
-    if (n >= 32) {
-        uint64_t v[4] = {P1 + P2, P2, 0, 0 - P1};
-        for (; p + 32 <= end; p += 32)
-            for (int k = 0; k < 4; ++k) v[k] = round(v[k], get64(p + 8 * k));
-        h = rotl(v[0], 1) + rotl(v[1], 7) + rotl(v[2], 12) + rotl(v[3], 18);
-        for (int k = 0; k < 4; ++k) h = (h ^ round(0, v[k])) * P1 + P4;
-    } else {
-        h = P5;
-    }
-    h += n;
-    for (; p + 8 <= end; p += 8) h = rotl(h ^ round(0, get64(p)), 27) * P1 + P4;
-    if (p + 4 <= end) h = rotl(h ^ uint64_t(get32(p)) * P1, 23) * P2 + P3, p += 4;
-    for (; p < end; ++p) h = rotl(h ^ *p * P5, 11) * P1;
-    h ^= h >> 33, h *= P2, h ^= h >> 29, h *= P3;
-    return h ^ (h >> 32);
-}
-uint64_t sections_sum(const unsigned char *p, size_t bytes) {
-    uint32_t a[8] = {}, b[8] = {};
-    for (size_t i = 0; i < bytes / 4; ++i) a[i % 8] += get32(p + 4 * i), b[i % 8] += a[i % 8];
-    unsigned char end[72];
-    for (int k = 0; k < 8; ++k)
-        for (int i = 0; i < 4; ++i) end[4 * k + i] = (unsigned char)(a[k] >> (8 * i)), end[32 + 4 * k + i] = (unsigned char)(b[k] >> (8 * i));
-    put64(end + 64, bytes / 4);
-    return xxh64(end, sizeof end);
-}
-
-// The checksums made again over what the bytes say, where the counts fit the size.
-void reseal(unsigned char *f, size_t n) {
-    if (n < 256) return;
-    const uint64_t meshes = get32(f + 20), nodes = get32(f + 80), leaves = get32(f + 84), blocks = get32(f + 88);
-    const uint64_t records = 256 + 320 * blocks + 8 * nodes + 48 * leaves + 4 * blocks + 4 * nodes;
-    if (records + 32 * meshes == n) {
-        put64(f + 192, xxh64(f + records, size_t(32 * meshes)));
-        put64(f + 200, sections_sum(f + 256, size_t(records - 256)));
-    }
-    put64(f + 248, xxh64(f, 248));
-}
+// The format's words and hashes, and forged files (../saved_format.hpp).
+using saved_format::get32;
+using saved_format::reseal;
 
 }  // namespace
 
