@@ -29,6 +29,23 @@ struct Tri {
     float p[3][3];
 };
 
+// The triangles of a mesh (common::Mesh: positions and vertex(triangle, corner)) as floats.
+template <class MeshT> std::vector<Tri> triangles_of(const MeshT &mesh) {
+    std::vector<Tri> out(mesh.triangle_count());
+    for (uint32_t i = 0; i < mesh.triangle_count(); ++i)
+        for (int k = 0; k < 3; ++k)
+            for (int a = 0; a < 3; ++a) out[i].p[k][a] = mesh.positions[3 * size_t(mesh.vertex(i, k)) + size_t(a)];
+    return out;
+}
+
+// Whether kdrt leaves t out of its trees: zero area, its edges' cross product exactly 0.
+inline bool zero_area(const Tri &t) {
+    Real e0[3], e1[3];
+    for (int a = 0; a < 3; ++a) e0[a] = Real(t.p[1][a]) - t.p[0][a], e1[a] = Real(t.p[2][a]) - t.p[0][a];
+    return e0[1] * e1[2] - e0[2] * e1[1] == 0 && e0[2] * e1[0] - e0[0] * e1[2] == 0 &&
+           e0[0] * e1[1] - e0[1] * e1[0] == 0;
+}
+
 inline Real dot(const Real a[3], const Real b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 // The squared distance from q to the triangle t, and the barycentrics (u, v) of the nearest point.

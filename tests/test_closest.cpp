@@ -28,20 +28,8 @@ namespace {
 
 using oracle::Tri;
 
-// The triangles of mesh as floats, and whether kdrt keeps each (zero area: left out).
-std::vector<Tri> triangles_of(const common::Mesh &mesh) {
-    std::vector<Tri> out(mesh.triangle_count());
-    for (uint32_t i = 0; i < mesh.triangle_count(); ++i)
-        for (int k = 0; k < 3; ++k)
-            for (int a = 0; a < 3; ++a) out[i].p[k][a] = mesh.positions[3 * size_t(mesh.vertex(i, k)) + size_t(a)];
-    return out;
-}
-bool zero_area(const Tri &t) {
-    oracle::Real e0[3], e1[3];
-    for (int a = 0; a < 3; ++a)
-        e0[a] = oracle::Real(t.p[1][a]) - t.p[0][a], e1[a] = oracle::Real(t.p[2][a]) - t.p[0][a];
-    return e0[1] * e1[2] - e0[2] * e1[1] == 0 && e0[2] * e1[0] - e0[0] * e1[2] == 0 && e0[0] * e1[1] - e0[1] * e1[0] == 0;
-}
+using oracle::triangles_of;
+using oracle::zero_area;
 
 // The true nearest triangle to q (ties to the lower index) among tris, skipping zero-area ones.
 struct Nearest {
