@@ -8434,13 +8434,16 @@ static void kdrt__closest_walk(const kdrt_tree *tree, const kdrt__instance *in, 
     kdrt__closest_walk_scalar(tree, in, y, q, scale, slop, mask, key, best);
 }
 
-/* kdrt_closest_point()'s checks and its answer from best. */
-static kdrt_result kdrt__closest_start(const float point[3], float max_distance,
-                                       kdrt_closest *out, kdrt__closest_best *best)
+/* kdrt_closest_point()'s checks (queried: the tree or scene) and its answer from best. out is
+   "nothing found" until the walk finds something. */
+static kdrt_result kdrt__closest_start(const void *queried, const float point[3],
+                                       float max_distance, kdrt_closest *out,
+                                       kdrt__closest_best *best)
 {
     memset(out, 0, sizeof *out);
     out->triangle = out->instance = KDRT_INVALID_ID;
     out->distance = INFINITY;
+    if (!queried || !point) return KDRT_ERROR_NULL_ARGUMENT;
     memset(best, 0, sizeof *best);
     /* The distance returned is rounded to float: one at max_distance after rounding counts. */
     best->limit = max_distance;
@@ -8470,12 +8473,7 @@ KDRT_API kdrt_result kdrt_closest_point(const kdrt_tree *tree, const float point
     kdrt_result r;
     double y[3];
     if (!out) return KDRT_ERROR_NULL_ARGUMENT;
-    if (!tree || !point) {
-        memset(out, 0, sizeof *out);
-        out->triangle = out->instance = KDRT_INVALID_ID, out->distance = INFINITY;
-        return KDRT_ERROR_NULL_ARGUMENT;
-    }
-    r = kdrt__closest_start(point, max_distance, out, &best);
+    r = kdrt__closest_start(tree, point, max_distance, out, &best);
     if (r != KDRT_SUCCESS) return r;
     y[0] = point[0], y[1] = point[1], y[2] = point[2];
     kdrt__closest_walk(tree, NULL, y, point, 1.0, 0.0, 0xFFFFFFFFu, 0, &best);
@@ -8504,6 +8502,57 @@ static int kdrt__boxes_meet(const float alo[3], const float ahi[3], const float 
            alo[2] <= bhi[2] && blo[2] <= ahi[2];
 }
 
+/* The leaves of a tree whose boxes meet a query box, in node order (below child first): the
+   overlap walk's, and the search for the leaf that reports a triangle. After each
+   kdrt__box_walk_next(), lo, hi and faces are the leaf's. */
+typedef struct kdrt__box_walk {
+    kdrt__box_todo stack[KDRT_MAX_DEPTH + 1];
+    uint32_t sp, node, faces; /* node: the next to look at, KDRT_INVALID_ID: pop one first */
+    float lo[3], hi[3];
+} kdrt__box_walk;
+
+static void kdrt__box_walk_start(kdrt__box_walk *w, const kdrt_tree *tree)
+{
+    int a;
+    w->sp = 0, w->node = 0, w->faces = 0;
+    for (a = 0; a < 3; ++a) w->lo[a] = tree->bounds.min[a], w->hi[a] = tree->bounds.max[a];
+}
+
+/* The next leaf whose box meets [qlo, qhi], or KDRT_INVALID_ID when there is none. */
+static uint32_t kdrt__box_walk_next(kdrt__box_walk *w, const kdrt_tree *tree, const float qlo[3],
+                                    const float qhi[3])
+{
+    int a;
+    for (;;) {
+        if (w->node == KDRT_INVALID_ID) {
+            const kdrt__box_todo *top;
+            if (w->sp == 0) return KDRT_INVALID_ID;
+            top = &w->stack[--w->sp];
+            w->node = top->node, w->faces = top->faces;
+            for (a = 0; a < 3; ++a) w->lo[a] = top->lo[a], w->hi[a] = top->hi[a];
+        }
+        if (kdrt__boxes_meet(w->lo, w->hi, qlo, qhi)) {
+            const kdrt__node *n = &tree->nodes[w->node];
+            if (!kdrt__node_is_leaf(n)) {
+                const uint32_t axis = kdrt__node_axis(n);
+                kdrt__box_todo *above = &w->stack[w->sp++];
+                KDRT_ASSERT(w->sp <= KDRT_MAX_DEPTH + 1);
+                for (a = 0; a < 3; ++a) above->lo[a] = w->lo[a], above->hi[a] = w->hi[a];
+                above->node = kdrt__node_above(n), above->lo[axis] = n->u.split;
+                above->faces = w->faces | 1u << (2 * axis);
+                w->hi[axis] = n->u.split, w->faces |= 1u << (2 * axis + 1), w->node += 1;
+                continue;
+            }
+            {
+                const uint32_t leaf = w->node;
+                w->node = KDRT_INVALID_ID;
+                return leaf;
+            }
+        }
+        w->node = KDRT_INVALID_ID;
+    }
+}
+
 /* Whether leaf, found by the walk of the box [qlo, qhi], is the one that reports triangle id whose
    box, cut by [qlo, qhi], is [blo, bhi] (and meets the leaf's box): the first leaf in node order
    (depth first, below first, as the nodes are numbered) whose box meets [blo, bhi] and that
@@ -8512,32 +8561,16 @@ static int kdrt__boxes_meet(const float alo[3], const float ahi[3], const float 
 static int kdrt__first_leaf_of(const kdrt_tree *tree, uint32_t leaf, uint32_t id,
                                const float blo[3], const float bhi[3])
 {
-    kdrt__box_todo stack[KDRT_MAX_DEPTH + 1];
-    uint32_t sp = 0, node = 0, i;
-    float lo[3], hi[3];
-    int a;
-    for (a = 0; a < 3; ++a) lo[a] = tree->bounds.min[a], hi[a] = tree->bounds.max[a];
-    for (;;) {
-        if (kdrt__boxes_meet(lo, hi, blo, bhi)) {
-            const kdrt__node *n = &tree->nodes[node];
-            if (!kdrt__node_is_leaf(n)) {
-                const uint32_t axis = kdrt__node_axis(n);
-                kdrt__box_todo *above = &stack[sp++];
-                KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
-                for (a = 0; a < 3; ++a) above->lo[a] = lo[a], above->hi[a] = hi[a];
-                above->node = kdrt__node_above(n), above->lo[axis] = n->u.split;
-                hi[axis] = n->u.split, node = node + 1;
-                continue;
-            }
-            if (node == leaf) return 1;
-            for (i = 0; i < kdrt__node_count(n); ++i)
-                if (tree->blocks[n->u.first + i / KDRT__LANES].id[i % KDRT__LANES] == id) return 0;
-        }
-        if (sp == 0) return 1; /* not reached: leaf itself meets the box */
-        --sp;
-        node = stack[sp].node;
-        for (a = 0; a < 3; ++a) lo[a] = stack[sp].lo[a], hi[a] = stack[sp].hi[a];
+    kdrt__box_walk walk;
+    uint32_t node, i;
+    kdrt__box_walk_start(&walk, tree);
+    while ((node = kdrt__box_walk_next(&walk, tree, blo, bhi)) != KDRT_INVALID_ID) {
+        const kdrt__node *n = &tree->nodes[node];
+        if (node == leaf) return 1;
+        for (i = 0; i < kdrt__node_count(n); ++i)
+            if (tree->blocks[n->u.first + i / KDRT__LANES].id[i % KDRT__LANES] == id) return 0;
     }
+    return 1; /* not reached: leaf itself meets the box */
 }
 
 /* One tree's walk of an overlap query: every leaf whose box meets [qlo, qhi] (the query's box
@@ -8548,75 +8581,60 @@ static int kdrt__first_leaf_of(const kdrt_tree *tree, uint32_t leaf, uint32_t id
 static void kdrt__overlap_walk(const kdrt_tree *tree, const kdrt__instance *in, const float qlo[3],
                                const float qhi[3], uint32_t geometry, kdrt__overlap_query *query)
 {
-    kdrt__box_todo stack[KDRT_MAX_DEPTH + 1];
-    uint32_t sp = 0, node = 0, faces = 0, i;
-    float lo[3], hi[3];
+    kdrt__box_walk walk;
+    const float *lo = walk.lo, *hi = walk.hi;
+    uint32_t node, i;
     const int check_mask = !tree->masks_full;
     int a;
     if (tree->stats.triangles == 0) return;
-    for (a = 0; a < 3; ++a) lo[a] = tree->bounds.min[a], hi[a] = tree->bounds.max[a];
-    for (;;) {
-        if (kdrt__boxes_meet(lo, hi, qlo, qhi)) {
-            const kdrt__node *n = &tree->nodes[node];
-            if (!kdrt__node_is_leaf(n)) {
-                const uint32_t axis = kdrt__node_axis(n);
-                kdrt__box_todo *above = &stack[sp++];
-                KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
-                for (a = 0; a < 3; ++a) above->lo[a] = lo[a], above->hi[a] = hi[a];
-                above->node = kdrt__node_above(n), above->lo[axis] = n->u.split;
-                above->faces = faces | 1u << (2 * axis);
-                hi[axis] = n->u.split, faces |= 1u << (2 * axis + 1), node = node + 1;
-                continue;
+    kdrt__box_walk_start(&walk, tree);
+    while ((node = kdrt__box_walk_next(&walk, tree, qlo, qhi)) != KDRT_INVALID_ID) {
+        const kdrt__node *n = &tree->nodes[node];
+        const uint32_t faces = walk.faces;
+        for (i = 0; i < kdrt__node_count(n); ++i) {
+            const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
+            const uint32_t id = block->id[i % KDRT__LANES];
+            float object[3][3], world[3][3], blo[3], bhi[3];
+            int inside = 1, k, meets;
+            kdrt_overlap found;
+            if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & query->mask)) continue;
+            kdrt__lane_world(block, i % KDRT__LANES, in, object, world);
+            /* The triangle's box (in the tree's space) cut by the query's: the leaves whose
+               boxes meet it are those that may report it. */
+            for (a = 0; a < 3; ++a) {
+                blo[a] = object[0][a], bhi[a] = object[0][a];
+                for (k = 1; k < 3; ++k) {
+                    blo[a] = object[k][a] < blo[a] ? object[k][a] : blo[a];
+                    bhi[a] = object[k][a] > bhi[a] ? object[k][a] : bhi[a];
+                }
+                blo[a] = qlo[a] > blo[a] ? qlo[a] : blo[a];
+                bhi[a] = qhi[a] < bhi[a] ? qhi[a] : bhi[a];
             }
-            for (i = 0; i < kdrt__node_count(n); ++i) {
-                const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
-                const uint32_t id = block->id[i % KDRT__LANES];
-                float object[3][3], world[3][3], blo[3], bhi[3];
-                int inside = 1, k, meets;
-                kdrt_overlap found;
-                if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & query->mask)) continue;
-                kdrt__lane_world(block, i % KDRT__LANES, in, object, world);
-                /* The triangle's box (in the tree's space) cut by the query's: the leaves whose
-                   boxes meet it are those that may report it. */
-                for (a = 0; a < 3; ++a) {
-                    blo[a] = object[0][a], bhi[a] = object[0][a];
-                    for (k = 1; k < 3; ++k) {
-                        blo[a] = object[k][a] < blo[a] ? object[k][a] : blo[a];
-                        bhi[a] = object[k][a] > bhi[a] ? object[k][a] : bhi[a];
-                    }
-                    blo[a] = qlo[a] > blo[a] ? qlo[a] : blo[a];
-                    bhi[a] = qhi[a] < bhi[a] ? qhi[a] : bhi[a];
-                }
-                if (!kdrt__boxes_meet(blo, bhi, lo, hi)) continue;
-                meets = query->sphere ? kdrt__finite(query->radius)
-                                            ? kdrt__triangle_ball(world, query->center, query->radius)
-                                            : 1
-                                      : kdrt__triangle_box(world, query->lo, query->hi);
-                if (!meets) continue;
-                /* Within the leaf's box, away from every split face: no other leaf's box meets
-                   it. Else the first leaf in node order that refers to it reports it. */
-                for (a = 0; a < 3; ++a) {
-                    if ((faces >> (2 * a) & 1u) && !(blo[a] > lo[a])) inside = 0;
-                    if ((faces >> (2 * a + 1) & 1u) && !(bhi[a] < hi[a])) inside = 0;
-                }
-                if (!inside && !kdrt__first_leaf_of(tree, node, id, blo, bhi)) continue;
-                found.triangle = id, found.geometry = geometry;
-                found.instance = in ? in->id : KDRT_INVALID_ID;
-                if (geometry == KDRT_INVALID_ID) {
-                    const kdrt__part *part = kdrt__part_of(&tree->meshes, id);
-                    found.triangle = id - part->first, found.geometry = part->id;
-                }
-                ++query->count;
-                if (query->callback && !query->callback(query->user, &found)) {
-                    query->stopped = 1;
-                    return;
-                }
+            if (!kdrt__boxes_meet(blo, bhi, lo, hi)) continue;
+            meets = query->sphere ? kdrt__finite(query->radius)
+                                        ? kdrt__triangle_ball(world, query->center, query->radius)
+                                        : 1
+                                  : kdrt__triangle_box(world, query->lo, query->hi);
+            if (!meets) continue;
+            /* Within the leaf's box, away from every split face: no other leaf's box meets
+               it. Else the first leaf in node order that refers to it reports it. */
+            for (a = 0; a < 3; ++a) {
+                if ((faces >> (2 * a) & 1u) && !(blo[a] > lo[a])) inside = 0;
+                if ((faces >> (2 * a + 1) & 1u) && !(bhi[a] < hi[a])) inside = 0;
+            }
+            if (!inside && !kdrt__first_leaf_of(tree, node, id, blo, bhi)) continue;
+            found.triangle = id, found.geometry = geometry;
+            found.instance = in ? in->id : KDRT_INVALID_ID;
+            if (geometry == KDRT_INVALID_ID) {
+                const kdrt__part *part = kdrt__part_of(&tree->meshes, id);
+                found.triangle = id - part->first, found.geometry = part->id;
+            }
+            ++query->count;
+            if (query->callback && !query->callback(query->user, &found)) {
+                query->stopped = 1;
+                return;
             }
         }
-        if (sp == 0) return;
-        --sp;
-        node = stack[sp].node, faces = stack[sp].faces;
-        for (a = 0; a < 3; ++a) lo[a] = stack[sp].lo[a], hi[a] = stack[sp].hi[a];
     }
 }
 
@@ -8739,12 +8757,7 @@ KDRT_API kdrt_result kdrt_scene_closest_point(const kdrt_scene *scene, const flo
     kdrt_result r;
     double y[3];
     if (!out) return KDRT_ERROR_NULL_ARGUMENT;
-    if (!scene || !point) {
-        memset(out, 0, sizeof *out);
-        out->triangle = out->instance = KDRT_INVALID_ID, out->distance = INFINITY;
-        return KDRT_ERROR_NULL_ARGUMENT;
-    }
-    r = kdrt__closest_start(point, max_distance, out, &best);
+    r = kdrt__closest_start(scene, point, max_distance, out, &best);
     if (r != KDRT_SUCCESS || mask == 0) return r;
     y[0] = point[0], y[1] = point[1], y[2] = point[2];
     if (scene->meshes) {
