@@ -654,8 +654,9 @@ TEST_CASE("bench option --kernel: a variant of every kdrt build per kernel, name
     // The kernels a tree built with each name's flags runs: the scalar kernel is always there, and
     // a named kernel passes the check exactly when such a tree runs it.
     CHECK(kb::check_kernels({"default", "scalar"}, error));
+    const common::Mesh sphere = kt::sphere(4, 8, 1.0);  // the trees borrow its buffers
     for (const char *kernel : {"avx2", "avx512"}) {
-        kt::TreePtr tree = kt::build(kt::sphere(4, 8, 1.0), 4, kt::kSahBuilders[0], kb::kernel_flags(kernel));
+        kt::TreePtr tree = kt::build(sphere, 4, kt::kSahBuilders[0], kb::kernel_flags(kernel));
         kdrt_tree_stats stats;
         kdrt_tree_get_stats(tree.get(), &stats);
         const bool runs = std::string(kb::kernel_name(stats.kernel)) == kernel;

@@ -260,7 +260,8 @@ TEST_CASE("cells: the other builders, qualities and leaf sizes, and stale cells 
         for (uint32_t leaf : {0u, 1u, 16u}) {
             INFO(builder.name << ", leaf size " << leaf);
             const kt::TreePtr tree = kt::build(mesh, leaf, builder);
-            const kt::TreePtr before = kt::build(kt::translated(mesh, 0.3, -0.2, 0.1), 4, builder);  // stale
+            const Mesh moved = kt::translated(mesh, 0.3, -0.2, 0.1);
+            const kt::TreePtr before = kt::build(moved, 4, builder);  // stale: another mesh's cells
             compare_hinted(tree.get(), before.get(), count, 7 + leaf);
         }
 }

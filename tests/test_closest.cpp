@@ -303,7 +303,8 @@ TEST_CASE("closest point: a corner of a triangle whose rounding makes its areas 
 }
 
 TEST_CASE("closest point: refused and empty queries", "[closest]") {
-    kt::TreePtr tree = kt::build(kt::random_soup(20, 1), 4);
+    const common::Mesh soup = kt::random_soup(20, 1);  // the tree borrows its buffers
+    kt::TreePtr tree = kt::build(soup, 4);
     const float nan = std::numeric_limits<float>::quiet_NaN(), inf = INFINITY;
     const float ok[3] = {1, 2, 3};
     kdrt_closest c;

@@ -620,7 +620,8 @@ TEST_CASE("save: a deep tree's depth is checked against its limit and KDRT_MAX_D
 
 TEST_CASE("save: a scene's mesh tree, saved and loaded into a scene without a build", "[save]") {
     const Mesh a = kt::sphere(10, 20, 1.0), b = kt::translated(kt::grid(12, 12, 3), 2, 0, 0), c = kt::translated(kt::sphere(6, 12, 0.5), -2, 1, 0);
-    kt::TreePtr instanced = kt::build(kt::sphere(8, 16, 0.3), 4);
+    const Mesh small = kt::sphere(8, 16, 0.3);  // the instanced tree borrows its buffers
+    kt::TreePtr instanced = kt::build(small, 4);
     const float shift[12] = {1, 0, 0, 0, 0, 1, 0, 3, 0, 0, 1, 0};
     const kdrt_triangles va = a.view(), vb = b.view(), vc = c.view();
     std::vector<kdrt_geometry> entries = {kdrt_mesh_geometry(5, &va), kdrt_mesh_geometry(2, &vb),
