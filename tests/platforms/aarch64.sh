@@ -49,10 +49,13 @@ for cc in "${compilers[@]}"; do
     # under -ffp-contract=fast is the compiler's, which KERNELS allows for; so is the builders'
     # (Clang vectorizes their double-precision areas), which shapes trees, never answers, and a
     # load's (the same areas, inlined into kdrt__load_tree), which gives its stats' sah_cost alone.
+    # The closest-point walk's distances are in double, outside the kernels: under
+    # -ffp-contract=fast Clang ignores the header's contract(off) (PLATFORMS: leave that flag off
+    # this file) and fuses them there, which -ffp-contract=off, the checked case, does not.
     fused=$(aarch64-linux-gnu-objdump -d --no-show-raw-insn "$object" | awk '
       /^[0-9a-f]+ <.*>:$/ { fn = $2 }
       /\t(fmla|fmls|fmadd|fmsub|fnmadd|fnmsub|fnmla|fnmls)\t/ {
-        if ($0 ~ /v[0-9]+\./ || fn ~ /_x4/) print fn, $0 }' | grep -v -E '<kdrt__(build_tree|split_refs|surface|level_subtree|level_split|load_tree|check_nodes)>' || true)
+        if ($0 ~ /v[0-9]+\./ || fn ~ /_x4/) print fn, $0 }' | grep -v -E '<kdrt__(build_tree|split_refs|surface|level_subtree|level_split|load_tree|check_nodes|closest_walk|closest_finish)>' || true)
     kernels=$(aarch64-linux-gnu-objdump -d --no-show-raw-insn "$object" | grep -c -E 'fmul\s+v[0-9]+\.(4s|2d)' || true)
     if [[ -n $fused ]]; then
       echo "aarch64.sh: $cc -ffp-contract=$contract fused the kernel's multiplies:" >&2
