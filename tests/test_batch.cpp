@@ -644,24 +644,6 @@ std::vector<NamedQuery> queries() {
     return q;
 }
 
-// ---- the counting allocator (as test_errors.cpp's, counting only) ----
-
-struct CountingAllocator {
-    size_t calls = 0, frees = 0;
-    kdrt_allocator hooks() {
-        kdrt_allocator a;
-        a.alloc = &CountingAllocator::alloc_cb, a.free = &CountingAllocator::free_cb, a.user = this;
-        return a;
-    }
-    static void *alloc_cb(void *user, size_t size) {
-        ++static_cast<CountingAllocator *>(user)->calls;
-        return std::malloc(size ? size : 1);
-    }
-    static void free_cb(void *user, void *ptr) {
-        ++static_cast<CountingAllocator *>(user)->frees;
-        std::free(ptr);
-    }
-};
 
 }  // namespace
 
@@ -896,7 +878,7 @@ TEST_CASE("batch: NULL arguments give misses and 0, and count 0 writes nothing",
 
 TEST_CASE("batch: the batch calls allocate nothing", "[batch][alloc]") {
     const Mesh mesh = kt::sphere(24, 36, 2.0), ground = kt::translated(kt::grid(16, 16, 5), -8, -8, -3);
-    CountingAllocator counter;
+    kt::CallCounter counter;
     kdrt_build_options o = kdrt_default_build_options();
     o.allocator = counter.hooks();
     const kdrt_triangles view = mesh.view();

@@ -153,9 +153,7 @@ std::vector<std::array<float, 3>> points_for(const std::vector<Tri> &tris, const
     return pts;
 }
 
-// How many points, boxes or balls a check draws: count at the default KDRT_TEST_RAYS (100,000),
-// in proportion to it otherwise (the sanitizer build's 20,000: a fifth), never under a fifth.
-size_t drawn_count(size_t count) { return std::max(count / 5, count * kt::reference_ray_count() / 100000); }
+using kt::drawn_count;
 
 // Every builder and leaf size on mesh: each answer against the brute force and against leaf size 0.
 void check_mesh(const common::Mesh &mesh, size_t count, uint32_t seed) {
@@ -487,23 +485,6 @@ struct SceneFree {
     void operator()(kdrt_scene *s) const { kdrt_scene_free(s); }
 };
 
-// Counts the allocator's calls (as test_batch.cpp's).
-struct CountingAllocator {
-    size_t calls = 0, frees = 0;
-    kdrt_allocator hooks() {
-        kdrt_allocator a;
-        a.alloc = &CountingAllocator::alloc_cb, a.free = &CountingAllocator::free_cb, a.user = this;
-        return a;
-    }
-    static void *alloc_cb(void *user, size_t size) {
-        ++static_cast<CountingAllocator *>(user)->calls;
-        return std::malloc(size ? size : 1);
-    }
-    static void free_cb(void *user, void *ptr) {
-        ++static_cast<CountingAllocator *>(user)->frees;
-        std::free(ptr);
-    }
-};
 
 int count_and_query(void *user, const kdrt_overlap *) {
     // A query from inside the callback, as the declaration allows.
@@ -596,7 +577,7 @@ TEST_CASE("closest point: distances beyond float's range", "[closest]") {
 
 TEST_CASE("closest point and overlap: the queries allocate nothing", "[closest][overlap][alloc]") {
     const common::Mesh mesh = kt::sphere(12, 18, 2.0), ground = kt::translated(kt::grid(8, 8, 5), -4, -4, -3);
-    CountingAllocator counter;
+    kt::CallCounter counter;
     kdrt_build_options o = kdrt_default_build_options();
     o.allocator = counter.hooks();
     const kdrt_triangles view = mesh.view();

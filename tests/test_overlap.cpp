@@ -176,9 +176,7 @@ std::vector<kdrt_aabb> boxes_for(const std::vector<Tri> &tris, const kdrt_tree *
     return boxes;
 }
 
-// How many points, boxes or balls a check draws: count at the default KDRT_TEST_RAYS (100,000),
-// in proportion to it otherwise (the sanitizer build's 20,000: a fifth), never under a fifth.
-size_t drawn_count(size_t count) { return std::max(count / 5, count * kt::reference_ray_count() / 100000); }
+using kt::drawn_count;
 
 // Every builder and leaf size on mesh: boxes and balls against the brute force.
 void check_mesh(const common::Mesh &mesh, size_t count, uint32_t seed) {

@@ -210,6 +210,24 @@ size_t count_from_environment(const char *name, size_t otherwise) {
 
 size_t reference_ray_count() { return count_from_environment("KDRT_TEST_RAYS", 100000); }
 
+size_t drawn_count(size_t count) {
+    return std::max(count / 5, count * reference_ray_count() / 100000);
+}
+
+kdrt_allocator CallCounter::hooks() {
+    kdrt_allocator a;
+    a.alloc = [](void *user, size_t size) {
+        ++static_cast<CallCounter *>(user)->calls;
+        return std::malloc(size ? size : 1);
+    };
+    a.free = [](void *user, void *ptr) {
+        ++static_cast<CallCounter *>(user)->frees;
+        std::free(ptr);
+    };
+    a.user = this;
+    return a;
+}
+
 size_t shared_mesh_ray_count() { return count_from_environment("KDRT_TEST_MESH_RAYS", reference_ray_count()); }
 
 size_t shared_mesh_max_triangles() { return count_from_environment("KDRT_TEST_MESH_TRIANGLES", 0); }

@@ -95,6 +95,17 @@ void skip_test(const std::string &why);
 
 // How many rays the reference suites trace: 100,000, or what KDRT_TEST_RAYS says.
 size_t reference_ray_count();
+// How many points, boxes or balls the closest-point and overlap suites draw for a check of count
+// at the default KDRT_TEST_RAYS (100,000): in proportion to reference_ray_count() (the sanitizer
+// build's 20,000: a fifth), never under a fifth.
+size_t drawn_count(size_t count);
+
+// An allocator (kdrt_allocator) counting its calls, for "allocates nothing" checks.
+struct CallCounter {
+    size_t calls = 0, frees = 0;
+    kdrt_allocator hooks();
+};
+
 // How many the shared meshes' reference suite traces a mesh: what KDRT_TEST_MESH_RAYS says, else
 // reference_ray_count(). CI's sanitizer build gives it fewer than the others, in the same ctest run.
 size_t shared_mesh_ray_count();
