@@ -564,8 +564,11 @@
      point on a triangle gets 0 or at most 2^-44 of its reach; one off the surface, D to within
      float rounding. The triangle returned is a nearest one within that bound, and point is
      (1 - u - v) p0 + u p1 + v p2 on it, rounded to float inside its corners' box. The walk
-     visits the nearer child first and skips nodes and triangles whose boxes lie farther than the
-     best so far, with a margin of 2^-40 that rounding cannot cross.
+     visits nodes nearest first (a queue ordered by their boxes' distances) and skips nodes and
+     triangles whose boxes, or whose corners seen along the direction of the best point so far,
+     lie farther than the best so far, with a margin of 2^-40 that rounding cannot cross. With
+     AVX2 and FMA it measures the triangles left in a block 4 at a time, by the same operations
+     as the scalar kernel, so with the same answers bit for bit.
      Boxes are decided exactly: the separating axis test of the triangle and the box (the box's
      3 axes, the triangle's normal, its 3 edges crossed with the 3 box axes; Akenine-Moeller
      2001) where each axis' verdict is exact: float comparisons on the box's axes, and on the
@@ -588,15 +591,18 @@
      the box round its corners there (widened by the rounding), and what that box finds is
      tested in the world.
      Cost. A closest point near the surface costs a descent and a leaf or two; the farther the
-     point from every triangle, the more nodes lie about as far as the best and are visited.
+     point from every triangle, the more nodes lie about as far as the best and are visited;
+     when more wait than the queue holds (near the centre of a finely divided sphere, all of it
+     about as far), the walk goes over the tree once more, depth first, with the best so far.
      An overlap query visits the leaves its box meets and tests their triangles once each; a
      triangle referred to by several leaves (crossing a split plane) and reaching past the
      split faces of the leaf found in is reported only by the first of them in node order, which
      a second descent from the root, bounded by the triangle's box, finds: big triangles under
-     big queries cost that descent each. The queries allocate nothing (their walks' stacks, of
-     KDRT_MAX_DEPTH + 1 nodes with their boxes, take about 4 KB of the caller's) and may run
-     from any number of threads; the callback runs on the calling thread and may query the same
-     tree or scene, not change it.
+     big queries cost that descent each. The queries allocate nothing (the closest-point walk's
+     queue of 128 nodes with their distances takes 5 KB of the caller's stack, the overlap
+     walk's stack of KDRT_MAX_DEPTH + 1 nodes with their boxes 2 KB) and may run from any number
+     of threads; the callback runs on the calling thread and may query the same tree or scene,
+     not change it.
 
    OPTICS
      For refractive objects: kdrt_reflect(), kdrt_refract() (Snell's law), exact Fresnel
@@ -1469,10 +1475,13 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #endif
 #if defined(__GNUC__) || defined(__clang__)
 #define KDRT__TARGET_AVX2 __attribute__((target("avx2")))
+/* The closest-point walk's (CLOSEST POINT AND OVERLAP): fma() one instruction. */
+#define KDRT__TARGET_AVX2_FMA __attribute__((target("avx2,fma")))
 /* The AVX-512 kernel: the AVX2 kernel, and a batch's packets 16 rays wide (BATCHES). */
 #define KDRT__TARGET_AVX512 __attribute__((target("avx2,avx512f")))
 #else
 #define KDRT__TARGET_AVX2
+#define KDRT__TARGET_AVX2_FMA
 #define KDRT__TARGET_AVX512
 #endif
 #if defined(_MSC_VER) && defined(__clang__)
@@ -1481,6 +1490,7 @@ KDRT_API kdrt_media_crossing kdrt_media_at_surface(const kdrt_media_stack *stack
 #include <smmintrin.h>
 #include <avxintrin.h>
 #include <avx2intrin.h>
+#include <fmaintrin.h>
 #include <avx512fintrin.h>
 #endif
 
@@ -1513,6 +1523,12 @@ static int kdrt__cpu_vector_level(void)
 
 static int kdrt__cpu_has_avx2(void) { return kdrt__cpu_vector_level() >= 1; }
 static int kdrt__cpu_has_avx512(void) { return kdrt__cpu_vector_level() >= 2; }
+static int kdrt__cpu_has_fma(void)
+{
+    int info[4];
+    __cpuid(info, 1);
+    return ((unsigned)info[2] >> 12) & 1u; /* cpuid 1, ecx bit 12 */
+}
 #else
 static int kdrt__cpu_has_avx2(void)
 {
@@ -1525,11 +1541,18 @@ static int kdrt__cpu_has_avx512(void)
     __builtin_cpu_init(); /* also checks that the OS saves the AVX-512 registers */
     return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avx512f");
 }
+
+static int kdrt__cpu_has_fma(void)
+{
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("fma") != 0;
+}
 #endif
 
 #else
 static int kdrt__cpu_has_avx2(void) { return 0; }
 static int kdrt__cpu_has_avx512(void) { return 0; }
+static int kdrt__cpu_has_fma(void) { return 0; }
 #endif
 
 #ifndef KDRT_ASSERT
@@ -1667,6 +1690,7 @@ struct kdrt_tree {
     int masks_full;      /* every part's mask has every bit: a ray's mask needs no test */
     int watertight;      /* options.intersector: 1 watertight, 0 fast (Moeller-Trumbore) */
     int simd; /* the kernel: 0 scalar, 1 AVX2, 2 AVX-512, 3 NEON, 4 SIMD128 (kdrt_kernel's) */
+    int closest_fma; /* the kernel is AVX2 or AVX-512 and the CPU has FMA: kdrt__closest_walk */
     kdrt_allocator allocator;
     kdrt_aabb bounds;
     kdrt__node *nodes;
@@ -3790,6 +3814,9 @@ static kdrt_tree *kdrt__tree_new(const kdrt_build_options *opt, const kdrt__mesh
     else
         tree->simd = KDRT_KERNEL_AVX2;
     tree->stats.kernel = (kdrt_kernel)tree->simd;
+    /* Every AVX2 CPU made so far has FMA; checked all the same, once. */
+    tree->closest_fma = (tree->simd == KDRT_KERNEL_AVX2 || tree->simd == KDRT_KERNEL_AVX512) &&
+                        kdrt__cpu_has_fma();
     tree->allocator = opt->allocator;
     tree->bounds = kdrt_aabb_empty();
     tree->shape = *opt;
@@ -4419,20 +4446,27 @@ static int kdrt__intersect_fast(const kdrt__block *block, uint32_t lane, const k
 /* Which SIMD kernel this build compiles, the AVX2 target attribute and the CPU check are
    defined with SSE2, above the builder, which uses them too. */
 
-#if defined(KDRT__AVX2) || defined(KDRT__X4)
+/* The lowest set bit of bits (not 0). */
 #if defined(_MSC_VER)
 #include <intrin.h> /* _BitScanForward */
-/* The lowest set bit of bits (not 0). */
 static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits)
 {
     unsigned long index;
     _BitScanForward(&index, bits);
     return (unsigned)index;
 }
-#else
-/* The lowest set bit of bits (not 0). */
+#elif defined(__GNUC__) || defined(__clang__)
 static KDRT__FORCEINLINE unsigned kdrt__ctz(unsigned bits) { return (unsigned)__builtin_ctz(bits); }
+#else
+static unsigned kdrt__ctz(unsigned bits)
+{
+    unsigned index = 0;
+    for (; !(bits & 1u); bits >>= 1) ++index;
+    return index;
+}
 #endif
+
+#if defined(KDRT__AVX2) || defined(KDRT__X4)
 
 /* What a block test found: the lanes whose triangles the ray meets (its return value, a bit a
    lane), their t, u, v, and front, a bit a lane set where the ray meets the front face. The block
@@ -8060,12 +8094,39 @@ typedef struct kdrt__box_todo {
     float lo[3], hi[3];
 } kdrt__box_todo;
 
-/* A node waiting on the closest-point walk's stack: the distances from the query's point to its
-   box along each axis (0 within its extent), whose squares sum to the box's squared distance. */
+/* A node waiting in the closest-point walk's queue: the distances from the query's point to its
+   box along each axis (0 within its extent), whose squares sum to the box's squared distance,
+   its key in the queue. */
 typedef struct kdrt__point_todo {
+    double box2, off[3];
     uint32_t node;
-    double off[3];
 } kdrt__point_todo;
+
+/* The closest-point walk's queue holds this many nodes (a heap; more are rare: see
+   kdrt__closest_walk_body); at least KDRT_MAX_DEPTH + 1, the stack of its depth-first form. */
+#define KDRT__POINT_QUEUE 128
+
+/* todo[0, *count) a heap by box2 (the least at 0): e added, or the least taken out to *e. */
+static KDRT__FORCEINLINE void kdrt__point_push(kdrt__point_todo *todo, uint32_t *count,
+                                               const kdrt__point_todo *e)
+{
+    uint32_t i = (*count)++;
+    while (i > 0 && todo[(i - 1) / 2].box2 > e->box2) todo[i] = todo[(i - 1) / 2], i = (i - 1) / 2;
+    todo[i] = *e;
+}
+static KDRT__FORCEINLINE void kdrt__point_pop(kdrt__point_todo *todo, uint32_t *count,
+                                              kdrt__point_todo *e)
+{
+    const kdrt__point_todo *last = &todo[--*count];
+    uint32_t i = 0, c;
+    *e = todo[0];
+    while ((c = 2 * i + 1) < *count) {
+        c += c + 1 < *count && todo[c + 1].box2 < todo[c].box2;
+        if (!(todo[c].box2 < last->box2)) break;
+        todo[i] = todo[c], i = c;
+    }
+    todo[i] = *last;
+}
 
 /* The margin of the walks' pruning: a node or a triangle is left out only when its distance,
    less 2^-40 of it, exceeds the best so far, so that rounding (a few ulps of double) never
@@ -8152,15 +8213,14 @@ static void kdrt__closest_plane(kdrt__closest_best *best, const float q[3])
     best->plane = best->w_length > 0.0 && best->w_length < INFINITY ? 1 : -1;
 }
 
-/* A lower bound of the distance from y to the triangle of block's lane: for any vector w,
-   |x - y| >= w . (x - y) / |w|, and over the triangle w . (x - y) is least at a corner. Each
-   w . (p - y) is lowered by 2^-48 of the sum of its terms' magnitudes (more than its rounding),
-   and |w| raised by 2^-48 (more than its): a bound of the exact distance whatever w is. With w
+/* The supporting-plane bound of block's lane: for any vector w, |x - y| >= w . (x - y) / |w|,
+   and over the triangle w . (x - y) is least at a corner. Returns that least w . (c - y), each
+   lowered by 2^-48 of the sum of its terms' magnitudes (more than its rounding): divided by |w|
+   raised by 2^-48 (more than its rounding), a bound of the exact distance whatever w is. With w
    the best point less y, triangles behind the best one's supporting plane (most of a convex
-   surface's, seen from outside) are left out without measuring them. 0 when it cannot say. */
-static KDRT__FORCEINLINE double kdrt__plane_bound(const kdrt__block *block, uint32_t lane,
-                                                  const double y[3], const double w[3],
-                                                  double w_length)
+   surface's, seen from outside) are left out without measuring them. */
+static KDRT__FORCEINLINE double kdrt__plane_least(const kdrt__block *block, uint32_t lane,
+                                                  const double y[3], const double w[3])
 {
     double least = INFINITY;
     int k, a;
@@ -8173,20 +8233,29 @@ static KDRT__FORCEINLINE double kdrt__plane_bound(const kdrt__block *block, uint
         t -= 3.552713678800501e-15 /* 2^-48 */ * m;
         least = t < least ? t : least;
     }
-    return least > 0.0 ? least / (w_length * (1.0 + 3.552713678800501e-15)) : 0.0;
+    return least;
 }
 
-/* The bounds a leaf block's triangles are pruned by: for each lane, the distance from q to the
-   lane's box (its corners' box) and, when w_length > 0, the supporting-plane bound of
-   kdrt__plane_bound for w, the larger, times KDRT__PRUNE_SLACK, in double (a lane past the
-   leaf's count gives whatever its corners give, unused). y is q in double. */
-static void kdrt__block_bounds(const kdrt__block *block, const float q[3], const double y[3],
-                               const double w[3], double w_length, double bound[KDRT__LANES])
+/* The squared pruning margin: 2^-38 on a squared distance, more than KDRT__PRUNE_SLACK's 2^-40 on
+   the distance with the squares' roundings. */
+#define KDRT__PRUNE_SLACK2 (1.0 - 3.637978807091713e-12)
+
+/* Which of a leaf block's first `lanes` lanes are left in (bit lane set) by the best distance so
+   far, limit: a lane is out when the squared distance from q to its box (its corners' box),
+   times KDRT__PRUNE_SLACK2, exceeds limit squared, or when w_length > 0 and its supporting-plane
+   bound (kdrt__plane_least over w_length raised by 2^-48), times KDRT__PRUNE_SLACK, exceeds
+   limit, compared multiplied out: no square root, no division. box2[lane] is the first of the
+   two, for lanes in. y is q in double. */
+static unsigned kdrt__block_bounds(const kdrt__block *block, uint32_t lanes, const float q[3],
+                                   const double y[3], const double w[3], double w_length,
+                                   double limit, double box2[KDRT__LANES])
 {
+    const double limit2 = limit * limit, plane_limit = limit * (w_length * (1.0 + 3.552713678800501e-15));
+    unsigned left = 0;
     uint32_t lane;
     int a, k;
-    for (lane = 0; lane < KDRT__LANES; ++lane) {
-        double d2 = 0.0, b;
+    for (lane = 0; lane < lanes; ++lane) {
+        double d2 = 0.0;
         for (a = 0; a < 3; ++a) {
             float lo = block->corner[a][lane], hi = lo;
             double d;
@@ -8198,29 +8267,35 @@ static void kdrt__block_bounds(const kdrt__block *block, const float q[3], const
             d = q[a] < lo ? (double)lo - q[a] : (q[a] > hi ? (double)q[a] - hi : 0.0);
             d2 += d * d;
         }
-        b = sqrt(d2);
-        if (w_length > 0.0) {
-            const double p = kdrt__plane_bound(block, lane, y, w, w_length);
-            b = p > b ? p : b;
-        }
-        bound[lane] = b * KDRT__PRUNE_SLACK;
+        box2[lane] = d2 * KDRT__PRUNE_SLACK2;
+        if (box2[lane] > limit2) continue;
+        if (w_length > 0.0 && kdrt__plane_least(block, lane, y, w) * KDRT__PRUNE_SLACK > plane_limit)
+            continue;
+        left |= 1u << lane;
     }
+    return left;
 }
 
 #ifdef KDRT__AVX2
-/* The same, 4 lanes at a time in double with AVX2: the same operations on the same values
-   (the corners widened exactly, one rounding a subtraction, product and sum, sqrt and the
-   division correctly rounded), so the same bounds bit for bit. */
-KDRT__TARGET_AVX2 static void kdrt__block_bounds_avx2(const kdrt__block *block, const float q[3],
-                                                      const double y[3], const double w[3],
-                                                      double w_length, double bound[KDRT__LANES])
+/* The same, 4 lanes at a time in double with AVX2: the same operations on the same values (the
+   corners widened exactly, one rounding a subtraction, product and sum), so the same lanes; the
+   plane bounds of a half only when its boxes leave a lane in. */
+KDRT__TARGET_AVX2 static unsigned kdrt__block_bounds_avx2(const kdrt__block *block, uint32_t lanes,
+                                                          const float q[3], const double y[3],
+                                                          const double w[3], double w_length,
+                                                          double limit, double box2[KDRT__LANES])
 {
     const __m256d zero = _mm256_setzero_pd(), slack = _mm256_set1_pd(KDRT__PRUNE_SLACK);
+    const __m256d slack2 = _mm256_set1_pd(KDRT__PRUNE_SLACK2);
     const __m256d sign = _mm256_set1_pd(-0.0), margin = _mm256_set1_pd(3.552713678800501e-15);
-    const __m256d length = _mm256_set1_pd(w_length * (1.0 + 3.552713678800501e-15));
+    const __m256d limit2 = _mm256_set1_pd(limit * limit);
+    const __m256d plane_limit = _mm256_set1_pd(limit * (w_length * (1.0 + 3.552713678800501e-15)));
+    const unsigned in_leaf = lanes >= KDRT__LANES ? 0xFFu : (1u << lanes) - 1u;
+    unsigned left = 0;
     int half, a, k;
-    for (half = 0; half < 2; ++half) {
-        __m256d d2 = zero, b;
+    for (half = 0; half < 2 && 4 * half < (int)lanes; ++half) {
+        __m256d d2 = zero;
+        unsigned near;
         for (a = 0; a < 3; ++a) {
             const __m128 c0 = _mm_loadu_ps(&block->corner[a][4 * half]);
             const __m128 c1 = _mm_loadu_ps(&block->corner[3 + a][4 * half]);
@@ -8232,9 +8307,11 @@ KDRT__TARGET_AVX2 static void kdrt__block_bounds_avx2(const kdrt__block *block, 
                 _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(lo, yq), _mm256_sub_pd(yq, hi)), zero);
             d2 = _mm256_add_pd(d2, _mm256_mul_pd(d, d));
         }
-        b = _mm256_sqrt_pd(d2);
-        if (w_length > 0.0) {
-            __m256d least = _mm256_set1_pd(INFINITY), p;
+        d2 = _mm256_mul_pd(d2, slack2);
+        _mm256_storeu_pd(box2 + 4 * half, d2);
+        near = (unsigned)_mm256_movemask_pd(_mm256_cmp_pd(d2, limit2, _CMP_LE_OQ)) << (4 * half);
+        if (near & in_leaf && w_length > 0.0) {
+            __m256d least = _mm256_set1_pd(INFINITY);
             for (k = 0; k < 3; ++k) {
                 __m256d t = zero, m = zero;
                 for (a = 0; a < 3; ++a) {
@@ -8247,11 +8324,120 @@ KDRT__TARGET_AVX2 static void kdrt__block_bounds_avx2(const kdrt__block *block, 
                 t = _mm256_sub_pd(t, _mm256_mul_pd(margin, m));
                 least = _mm256_min_pd(t, least); /* t < least ? t : least */
             }
-            p = _mm256_and_pd(_mm256_div_pd(least, length), _mm256_cmp_pd(least, zero, _CMP_GT_OQ));
-            b = _mm256_max_pd(p, b); /* p > b ? p : b */
+            least = _mm256_mul_pd(least, slack);
+            near &= (unsigned)_mm256_movemask_pd(_mm256_cmp_pd(least, plane_limit, _CMP_LE_OQ))
+                    << (4 * half);
         }
-        _mm256_storeu_pd(bound + 4 * half, _mm256_mul_pd(b, slack));
+        left |= near;
     }
+    return left & in_leaf;
+}
+#endif
+
+#ifdef KDRT__AVX2
+/* kdrt__dop and its cross product and kdrt__dot3 and kdrt__norm3, 4 lanes at a time. */
+KDRT__TARGET_AVX2_FMA static KDRT__FORCEINLINE __m256d kdrt__dop_x4(__m256d a, __m256d b, __m256d c,
+                                                                  __m256d d)
+{
+    const __m256d w = _mm256_mul_pd(c, d), sign = _mm256_set1_pd(-0.0);
+    return _mm256_add_pd(_mm256_fmadd_pd(a, b, _mm256_xor_pd(w, sign)),
+                         _mm256_fmadd_pd(_mm256_xor_pd(c, sign), d, w));
+}
+KDRT__TARGET_AVX2_FMA static KDRT__FORCEINLINE void kdrt__cross_x4(const __m256d x[3],
+                                                                   const __m256d y[3], __m256d out[3])
+{
+    out[0] = kdrt__dop_x4(x[1], y[2], x[2], y[1]);
+    out[1] = kdrt__dop_x4(x[2], y[0], x[0], y[2]);
+    out[2] = kdrt__dop_x4(x[0], y[1], x[1], y[0]);
+}
+KDRT__TARGET_AVX2_FMA static KDRT__FORCEINLINE __m256d kdrt__dot_x4(const __m256d x[3],
+                                                                   const __m256d y[3])
+{
+    return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(x[0], y[0]), _mm256_mul_pd(x[1], y[1])),
+                         _mm256_mul_pd(x[2], y[2]));
+}
+
+/* kdrt__origin_segment, 4 lanes at a time: each lane's branch chosen by blending, its distance
+   the square root of the same sums of the same values; t in *t. */
+KDRT__TARGET_AVX2_FMA static KDRT__FORCEINLINE __m256d kdrt__origin_segment_x4(const __m256d S[3],
+                                                                              const __m256d e[3],
+                                                                              const __m256d E[3],
+                                                                              __m256d *t)
+{
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+    const __m256d ee = kdrt__dot_x4(e, e);
+    const __m256d se = _mm256_xor_pd(kdrt__dot_x4(S, e), _mm256_set1_pd(-0.0));
+    /* !(se > 0) || ee == 0: the start; else se >= ee: the end; else S + x e, x = se / ee */
+    const __m256d at_start =
+        _mm256_or_pd(_mm256_cmp_pd(se, zero, _CMP_NGT_UQ), _mm256_cmp_pd(ee, zero, _CMP_EQ_OQ));
+    const __m256d at_end = _mm256_andnot_pd(at_start, _mm256_cmp_pd(se, ee, _CMP_GE_OQ));
+    const __m256d x = _mm256_div_pd(se, ee);
+    __m256d p[3];
+    int k;
+    for (k = 0; k < 3; ++k) {
+        p[k] = _mm256_add_pd(S[k], _mm256_mul_pd(x, e[k]));
+        p[k] = _mm256_blendv_pd(_mm256_blendv_pd(p[k], E[k], at_end), S[k], at_start);
+    }
+    *t = _mm256_blendv_pd(_mm256_blendv_pd(x, one, at_end), zero, at_start);
+    return _mm256_sqrt_pd(kdrt__dot_x4(p, p));
+}
+
+/* kdrt__point_triangle for lanes 4 half to 4 half + 3 of block from q, 4 at a time with AVX2 and
+   FMA: the same operations on the same values, every branch taken and each lane's own kept, so
+   the same distances and barycentrics bit for bit. */
+KDRT__TARGET_AVX2_FMA static void kdrt__point_triangles_avx2(const kdrt__block *block, int half,
+                                                            const float q[3], double d[4],
+                                                            double u[4], double v[4])
+{
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+    __m256d A[3], B[3], C[3], e0[3], e1[3], e2[3], n[3], m[3], nn, la, lb, lc, s, inside;
+    __m256d plane, best, bu, bv, t, x;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const __m256d p = _mm256_set1_pd((double)q[k]);
+        A[k] = _mm256_sub_pd(_mm256_cvtps_pd(_mm_loadu_ps(&block->corner[k][4 * half])), p);
+        B[k] = _mm256_sub_pd(_mm256_cvtps_pd(_mm_loadu_ps(&block->corner[3 + k][4 * half])), p);
+        C[k] = _mm256_sub_pd(_mm256_cvtps_pd(_mm_loadu_ps(&block->corner[6 + k][4 * half])), p);
+    }
+    for (k = 0; k < 3; ++k) {
+        e0[k] = _mm256_sub_pd(B[k], A[k]);
+        e1[k] = _mm256_sub_pd(C[k], A[k]);
+        e2[k] = _mm256_sub_pd(C[k], B[k]);
+    }
+    kdrt__cross_x4(e0, e1, n);
+    nn = kdrt__dot_x4(n, n);
+    kdrt__cross_x4(B, e2, m);
+    la = kdrt__dot_x4(m, n);
+    kdrt__cross_x4(e1, C, m);
+    lb = kdrt__dot_x4(m, n);
+    kdrt__cross_x4(A, e0, m);
+    lc = kdrt__dot_x4(m, n);
+    s = _mm256_add_pd(_mm256_add_pd(la, lb), lc);
+    inside = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(nn, zero, _CMP_GT_OQ),
+                                         _mm256_cmp_pd(la, zero, _CMP_GE_OQ)),
+                           _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(lb, zero, _CMP_GE_OQ),
+                                                       _mm256_cmp_pd(lc, zero, _CMP_GE_OQ)),
+                                         _mm256_cmp_pd(s, zero, _CMP_GT_OQ)));
+    plane = _mm256_div_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), kdrt__dot_x4(n, A)),
+                          _mm256_sqrt_pd(nn));
+    /* the nearest edge, the first on a tie */
+    best = kdrt__origin_segment_x4(A, e0, B, &t);
+    bu = t, bv = zero;
+    x = kdrt__origin_segment_x4(A, e1, C, &t);
+    {
+        const __m256d nearer = _mm256_cmp_pd(x, best, _CMP_LT_OQ);
+        best = _mm256_blendv_pd(best, x, nearer);
+        bu = _mm256_blendv_pd(bu, zero, nearer), bv = _mm256_blendv_pd(bv, t, nearer);
+    }
+    x = kdrt__origin_segment_x4(B, e2, C, &t);
+    {
+        const __m256d nearer = _mm256_cmp_pd(x, best, _CMP_LT_OQ);
+        best = _mm256_blendv_pd(best, x, nearer);
+        bu = _mm256_blendv_pd(bu, _mm256_sub_pd(one, t), nearer), bv = _mm256_blendv_pd(bv, t, nearer);
+    }
+    _mm256_storeu_pd(d, _mm256_blendv_pd(best, plane, inside));
+    _mm256_storeu_pd(u, _mm256_blendv_pd(bu, _mm256_div_pd(lb, s), inside));
+    _mm256_storeu_pd(v, _mm256_blendv_pd(bv, _mm256_div_pd(lc, s), inside));
 }
 #endif
 
@@ -8273,78 +8459,140 @@ static KDRT__FORCEINLINE void kdrt__closest_offer(kdrt__closest_best *best, doub
     }
 }
 
-/* One tree's walk for a closest-point query: the nearer child first, the farther one on the stack
-   with its distances from the point along the axes (the split axis's from the split plane, the
-   others its parent's: the box distance as kdrt__box_distance finds it, bit for bit); a node is
-   skipped when its distance (in the tree's space, times scale, less slop: a lower bound of the
-   world distance of any triangle it holds, CLOSEST POINT AND OVERLAP) exceeds the best so far.
-   Its triangles get key and instance; mask against the parts' masks (a scene's mesh tree:
-   triangles compared as the tree numbers them, which is the (geometry ID, triangle) order). A
-   tree's own triangles (no instance) are pruned a leaf block at a time by the larger of their
-   boxes' distances and their supporting-plane bounds (kdrt__block_bounds, 8 lanes at once with
-   AVX2 when avx2 is set); an instance's, carried into the world one by one, by their world
-   boxes. Which triangles are measured, and in which order, changes the work, never the answer:
-   the best is the first in the (distance, key, triangle) order whatever the order it is offered
-   in. */
+/* 1 when a box at squared distance box2 from the query's point (in the tree's space) may hold a
+   triangle nearer than best: its distance times scale, less slop, is a lower bound of their world
+   distances (plain: scale 1, slop 0, compared squared). */
+static KDRT__FORCEINLINE int kdrt__box_near(double box2, int plain, double scale, double slop,
+                                            double best)
+{
+    if (plain) return !(box2 * KDRT__PRUNE_SLACK2 > best * best);
+    return !((sqrt(box2) * scale - slop) * KDRT__PRUNE_SLACK > best);
+}
+
+/* One tree's walk for a closest-point query, best first: the nodes waiting in a heap by their
+   boxes' distances from the point, the nearest taken out next, its nearer child entered at once
+   (at the same distance) and the farther one queued with its distances along the axes (the split
+   axis's from the split plane, the others its parent's: the box distance as kdrt__box_distance
+   finds it, bit for bit). A node is skipped when its distance (in the tree's space, times scale,
+   less slop: a lower bound of the world distance of any triangle it holds, CLOSEST POINT AND
+   OVERLAP) exceeds the best so far, and so is everything still queued once the nearest is. When
+   the queue is full (KDRT__POINT_QUEUE: deep trees seen from far away) a node is left out and,
+   once the queue is done, the walk starts again from the root depth first with the best so far
+   (its stack bounded by the depth). Its triangles get key and instance; mask against the parts'
+   masks (a scene's mesh tree: triangles compared as the tree numbers them, which is the
+   (geometry ID, triangle) order). A tree's own triangles (no instance) are pruned a leaf block
+   at a time by their boxes' distances and their supporting-plane bounds (kdrt__block_bounds, 8
+   lanes at once with AVX2 when avx2 is set); an instance's, carried into the world one by one,
+   by their world boxes. Which triangles are measured, and in which order, changes the work,
+   never the answer: the best is the first in the (distance, key, triangle) order whatever the
+   order it is offered in. */
 static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, const kdrt__instance *in,
                                                       const double y[3], const float q[3],
                                                       double scale, double slop, uint32_t mask,
                                                       uint32_t key, kdrt__closest_best *best,
                                                       int avx2)
 {
-    kdrt__point_todo stack[KDRT_MAX_DEPTH + 1];
-    uint32_t sp = 0, node = 0, i, lane;
-    double off[3];
+    kdrt__point_todo todo[KDRT__POINT_QUEUE], root, at;
+    uint32_t queued = 0, i, lane;
+    int best_first = 1, left_out = 0, a;
     const int check_mask = !tree->masks_full, plain = scale == 1.0 && slop == 0.0;
-    int a;
     (void)avx2;
     if (tree->stats.triangles == 0) return;
+    root.node = 0;
     for (a = 0; a < 3; ++a) {
         const double lo = tree->bounds.min[a], hi = tree->bounds.max[a];
-        off[a] = y[a] < lo ? lo - y[a] : (y[a] > hi ? y[a] - hi : 0.0);
+        root.off[a] = y[a] < lo ? lo - y[a] : (y[a] > hi ? y[a] - hi : 0.0);
     }
+    root.box2 = 0.0 + root.off[0] * root.off[0] + root.off[1] * root.off[1] + root.off[2] * root.off[2];
+    todo[queued++] = root;
     for (;;) {
-        const double box2 = 0.0 + off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
-        int near_enough;
-        if (plain) /* the squares, with a slack of 2^-38 on box2 (more than 2^-40 on its root) */
-            near_enough = !(box2 * (1.0 - 3.637978807091713e-12) > best->distance * best->distance);
-        else
-            near_enough = !((sqrt(box2) * scale - slop) * KDRT__PRUNE_SLACK > best->distance);
-        if (near_enough) {
-            const kdrt__node *n = &tree->nodes[node];
+        if (queued == 0) {
+            if (!left_out) return;
+            best_first = left_out = 0; /* again, depth first: see above */
+            at = root;
+        } else if (best_first) {
+            kdrt__point_pop(todo, &queued, &at);
+        } else {
+            at = todo[--queued];
+        }
+        if (!kdrt__box_near(at.box2, plain, scale, slop, best->distance)) {
+            if (best_first) queued = 0; /* the rest are no nearer */
+            continue;
+        }
+        for (;;) {
+            const kdrt__node *n = &tree->nodes[at.node];
             const uint32_t count = kdrt__node_count(n);
             if (!kdrt__node_is_leaf(n)) {
                 const uint32_t axis = kdrt__node_axis(n);
                 const double split = n->u.split;
                 const int below = y[axis] <= split;
-                kdrt__point_todo *far = &stack[sp++];
-                KDRT_ASSERT(sp <= KDRT_MAX_DEPTH + 1);
-                for (a = 0; a < 3; ++a) far->off[a] = off[a];
-                far->off[axis] = below ? split - y[axis] : y[axis] - split;
-                far->node = below ? kdrt__node_above(n) : node + 1;
-                node = below ? node + 1 : kdrt__node_above(n);
+                kdrt__point_todo far = at;
+                far.off[axis] = below ? split - y[axis] : y[axis] - split;
+                far.box2 = 0.0 + far.off[0] * far.off[0] + far.off[1] * far.off[1] + far.off[2] * far.off[2];
+                far.node = below ? kdrt__node_above(n) : at.node + 1;
+                at.node = below ? at.node + 1 : kdrt__node_above(n);
+                if (!kdrt__box_near(far.box2, plain, scale, slop, best->distance)) {
+                    /* not worth queueing */
+                } else if (!best_first) {
+                    KDRT_ASSERT(queued < KDRT_MAX_DEPTH + 1);
+                    todo[queued++] = far;
+                } else if (queued < KDRT__POINT_QUEUE) {
+                    kdrt__point_push(todo, &queued, &far);
+                } else {
+                    left_out = 1;
+                }
                 continue;
             }
             if (!in) {
                 for (i = 0; i < count; i += KDRT__LANES) {
                     const kdrt__block *block = &tree->blocks[n->u.first + i / KDRT__LANES];
                     const uint32_t lanes = count - i < KDRT__LANES ? count - i : KDRT__LANES;
-                    double bounds[KDRT__LANES];
+                    double box2[KDRT__LANES];
                     double w_length = 0.0;
+                    unsigned left;
                     if (best->found && best->plane == 0) kdrt__closest_plane(best, q);
                     if (best->plane > 0) w_length = best->w_length;
 #ifdef KDRT__AVX2
-                    if (avx2) kdrt__block_bounds_avx2(block, q, y, best->w, w_length, bounds);
+                    if (avx2)
+                        left = kdrt__block_bounds_avx2(block, lanes, q, y, best->w, w_length,
+                                                       best->distance, box2);
                     else
 #endif
-                        kdrt__block_bounds(block, q, y, best->w, w_length, bounds);
-                    for (lane = 0; lane < lanes; ++lane) {
+                        left = kdrt__block_bounds(block, lanes, q, y, best->w, w_length,
+                                                  best->distance, box2);
+#ifdef KDRT__AVX2
+                    if (avx2) { /* the lanes left in each half measured 4 at a time */
+                        uint32_t half;
+                        for (half = 0; half < 2; ++half) {
+                            unsigned these = (left >> (4 * half)) & 0xFu;
+                            double ds[4], us[4], vs[4];
+                            if (!these) continue;
+                            kdrt__point_triangles_avx2(block, (int)half, q, ds, us, vs);
+                            for (; these; these &= these - 1u) {
+                                const unsigned j = kdrt__ctz(these);
+                                float world[3][3];
+                                const uint32_t id = block->id[lane = 4 * half + j];
+                                int k;
+                                if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask))
+                                    continue;
+                                for (k = 0; k < 3; ++k)
+                                    for (a = 0; a < 3; ++a) world[k][a] = block->corner[3 * k + a][lane];
+                                kdrt__closest_offer(best, ds[j], us[j], vs[j], key, id, in, world);
+                            }
+                        }
+                        continue;
+                    }
+#endif
+                    for (; left; left &= left - 1u) {
                         float world[3][3];
                         double d, u, v;
-                        const uint32_t id = block->id[lane];
-                        if (bounds[lane] > best->distance) continue;
+                        uint32_t id;
+                        int k;
+                        lane = kdrt__ctz(left), id = block->id[lane];
+                        if (box2[lane] > best->distance * best->distance) continue; /* nearer since */
                         if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask)) continue;
-                        for (a = 0; a < 9; ++a) world[a / 3][a % 3] = block->corner[a][lane];
+                        for (k = 0; k < 3; ++k)
+                            for (a = 0; a < 3; ++a) world[k][a] = block->corner[3 * k + a][lane];
                         d = kdrt__point_triangle(world, q, &u, &v);
                         kdrt__closest_offer(best, d, u, v, key, id, in, world);
                     }
@@ -8374,11 +8622,8 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                     kdrt__closest_offer(best, d, u, v, key, id, in, world);
                 }
             }
+            break;
         }
-        if (sp == 0) return;
-        --sp;
-        node = stack[sp].node;
-        for (a = 0; a < 3; ++a) off[a] = stack[sp].off[a];
     }
 }
 
@@ -8393,40 +8638,23 @@ static void kdrt__closest_walk_scalar(const kdrt_tree *tree, const kdrt__instanc
 #ifdef KDRT__AVX2
 /* The walk compiled for AVX2 and FMA: the blocks' bounds 8 lanes at a time, and the distance's
    fma() one instruction instead of a call (fma is exact: the same answers). */
-#if defined(__GNUC__) || defined(__clang__)
-__attribute__((target("avx2,fma")))
-#endif
-static void kdrt__closest_walk_avx2(const kdrt_tree *tree, const kdrt__instance *in,
+KDRT__TARGET_AVX2_FMA static void kdrt__closest_walk_avx2(const kdrt_tree *tree, const kdrt__instance *in,
                                     const double y[3], const float q[3], double scale, double slop,
                                     uint32_t mask, uint32_t key, kdrt__closest_best *best)
 {
     kdrt__closest_walk_body(tree, in, y, q, scale, slop, mask, key, best, 1);
 }
 
-/* 1 where the CPU has FMA (every AVX2 CPU made so far; checked all the same). */
-static int kdrt__cpu_has_fma(void)
-{
-#if defined(_MSC_VER) && !defined(__clang__)
-    int info[4];
-    __cpuid(info, 1);
-    return ((unsigned)info[2] >> 12) & 1u;
-#elif defined(_MSC_VER)
-    return 1; /* clang-cl: the walk's fma() stays a call without the target attribute's effect */
-#else
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("fma") != 0;
-#endif
-}
 #endif
 
 /* The walk of the tree's kernel: the AVX2 form where the tree runs the AVX2 or AVX-512 kernel
-   (and the CPU has FMA), else the scalar one; both give the same answers. */
+   and the CPU has FMA (tree->closest_fma), else the scalar one; both give the same answers. */
 static void kdrt__closest_walk(const kdrt_tree *tree, const kdrt__instance *in, const double y[3],
                                const float q[3], double scale, double slop, uint32_t mask,
                                uint32_t key, kdrt__closest_best *best)
 {
 #ifdef KDRT__AVX2
-    if ((tree->simd == KDRT_KERNEL_AVX2 || tree->simd == KDRT_KERNEL_AVX512) && kdrt__cpu_has_fma()) {
+    if (tree->closest_fma) {
         kdrt__closest_walk_avx2(tree, in, y, q, scale, slop, mask, key, best);
         return;
     }

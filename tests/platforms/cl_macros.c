@@ -8,6 +8,7 @@
 #include <smmintrin.h>
 #include <avxintrin.h>
 #include <avx2intrin.h>
+#include <fmaintrin.h>
 #include <avx512fintrin.h>
 #pragma clang attribute push(__attribute__((target("avx2,avx512f"))), apply_to = function)
 /* kdrt.h turns contraction off for cl.exe with MSVC's #pragma fp_contract(off), which clang
