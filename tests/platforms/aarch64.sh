@@ -8,8 +8,8 @@
 # checks that its kernels hold no fused multiply-add (fmla, fmls, fmadd, ...) under
 # -ffp-contract=off and =fast, with GCC and with Clang. Under qemu only the tests whose answers
 # depend on the kernel run, on fewer random rays (KDRT_TEST_RAYS) than the native build, so that
-# the whole script takes under 4 minutes on 2 cores. Needs: cmake, ninja, qemu-user, Catch2 2 (header-only) and aarch64-linux-gnu-g++ or
-# clang (KDRT_AARCH64_COMPILER=gcc|clang picks one).
+# the whole script takes about 3 minutes on 2 cores. Needs: cmake, ninja, qemu-user, Catch2 2
+# (header-only) and aarch64-linux-gnu-g++ or clang (KDRT_AARCH64_COMPILER=gcc|clang picks one).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 build=${1:-build-aarch64}
@@ -18,10 +18,46 @@ start=$SECONDS
 step() { printf '=== %s (at %ds)\n' "$*" "$((SECONDS - start))"; }
 
 step "configure and build the core suites for aarch64"
+# Under qemu, the tests below run at KDRT_TEST_RAYS=2000 random rays a scene, but the kernels'
+# comparison and the batches at 4,000 (below that the batch test's camera traces fewer rays than
+# it requires), and each gets its seconds under qemu on 2 cores as its COST, so that ctest starts
+# the longest first and one run keeps both cores busy to the end: a file of properties that ctest
+# reads once it has listed the tests (KDRT_TEST_PROPERTIES_FILE, tests/CMakeLists.txt).
+mkdir -p "$build"
+properties="$(cd "$build" && pwd)/qemu-test-properties.cmake"
+{
+  echo "# Written by tests/platforms/aarch64.sh: the costs of the tests it runs under qemu, and ray counts."
+  while IFS='|' read -r cost rays name; do
+    environment=""
+    [[ -n $rays ]] && environment=" ENVIRONMENT KDRT_TEST_RAYS=$rays"
+    echo "set_tests_properties([==[$name]==] PROPERTIES COST $cost$environment)"
+  done <<'TESTS'
+44|4000|kernels: the SIMD and scalar kernels answer every ray bit for bit alike
+36|4000|batch: every builder, quality, intersector and leaf size, and empty trees
+16|4000|batch: culled faces, masks and filters give the single-ray answers
+8|4000|batch: coherent and incoherent rays on generated meshes, bit for bit as one by one
+7|4000|batch: packets with an odd ray, mixed signs, special parts, per-lane ranges, split planes and hints
+5|4000|batch: scenes of meshes, and of meshes and instances, as the single scene calls
+1|4000|batch: several threads batching on one tree and one scene at once get the single-ray answers
+1|4000|batch: NULL arguments give misses and 0, and count 0 writes nothing
+1|4000|batch: coherent and incoherent rays on the shared meshes
+16||hard sets: every answer agrees with the oracle and every leaf size answers as leaf size 0
+13||k nearest: every hit of small meshes, against a tree per triangle
+12||spheres agree with the reference
+12||scalar:spheres agree with the reference
+11||watertight: no ray aimed at a vertex or an edge slips through a closed mesh
+7||scalar:random triangle soups agree with the reference
+6||scalar:height field grids agree with the reference
+6||query: culled faces are those the double-precision normal says, both tests
+5||random triangle soups agree with the reference
+5||cells: a ray started from any cell gets the root walk's answer, bit for bit
+4||height field grids agree with the reference
+TESTS
+} >"$properties"
 # The implementation (C) at -O2, where the kernels are; the suites (C++) at -O1, which builds in
 # far less time than -O3 and runs them about as fast under qemu.
 cmake -S . -B "$build" -G Ninja -DCMAKE_TOOLCHAIN_FILE=tests/platforms/aarch64-toolchain.cmake \
-  -DKDRT_CORE_TESTS_ONLY=ON -DCMAKE_BUILD_TYPE=Release \
+  -DKDRT_CORE_TESTS_ONLY=ON -DCMAKE_BUILD_TYPE=Release -DKDRT_TEST_PROPERTIES_FILE="$properties" \
   -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG" -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" >/dev/null
 cmake --build "$build" -j2
 
@@ -36,14 +72,27 @@ command -v clang >/dev/null && [[ -d /usr/aarch64-linux-gnu/include ]] && compil
 # The C compiler of the CMake build, for the programs built here.
 compiler_c=(aarch64-linux-gnu-gcc)
 [[ ${compilers[0]} == gcc ]] || compiler_c=(clang --target=aarch64-linux-gnu)
+# The objects first, two compilers at a time (each compile is one process); then their checks.
+compile_failed=0
 for cc in "${compilers[@]}"; do
   if [[ $cc == gcc ]]; then c=(aarch64-linux-gnu-gcc) cxx=(aarch64-linux-gnu-g++)
   else c=(clang --target=aarch64-linux-gnu) cxx=(clang++ --target=aarch64-linux-gnu); fi
-  "${c[@]}" -std=c99 -O0 "${strict[@]}" -c "$objects/implementation.c" -o "$objects/$cc-O0.o"
-  "${cxx[@]}" -std=c++11 -x c++ -O0 "${strict[@]}" -c "$objects/implementation.c" -o "$objects/$cc-O0-cpp.o"
+  compiles=(
+    "${c[*]} -std=c99 -O0 ${strict[*]} -c $objects/implementation.c -o $objects/$cc-O0.o"
+    "${cxx[*]} -std=c++11 -x c++ -O0 ${strict[*]} -c $objects/implementation.c -o $objects/$cc-O0-cpp.o"
+    "${c[*]} -std=c99 -O2 -ffp-contract=off ${strict[*]} -c $objects/implementation.c -o $objects/$cc-O2-off.o"
+    "${c[*]} -std=c99 -O2 -ffp-contract=fast ${strict[*]} -c $objects/implementation.c -o $objects/$cc-O2-fast.o")
+  for command in "${compiles[@]}"; do
+    # shellcheck disable=SC2086  # a command line of words without spaces of their own
+    { echo "+ $command"; $command; } &
+    if (( $(jobs -rp | wc -l) >= 2 )); then wait -n || compile_failed=1; fi
+  done
+done
+while (( $(jobs -rp | wc -l) > 0 )); do wait -n || compile_failed=1; done
+if (( compile_failed )); then echo "aarch64.sh: the implementation did not compile cleanly (above)" >&2; exit 1; fi
+for cc in "${compilers[@]}"; do
   for contract in off fast; do
     object="$objects/$cc-O2-$contract.o"
-    "${c[@]}" -std=c99 -O2 -ffp-contract=$contract "${strict[@]}" -c "$objects/implementation.c" -o "$object"
     # The kernel is inlined into the walks (Clang) or stays in kdrt__block_*_x4 (GCC): no vector
     # fused multiply-add anywhere, and none in the block tests. The scalar kernel's own fusing
     # under -ffp-contract=fast is the compiler's, which KERNELS allows for; so is the builders'
@@ -75,23 +124,29 @@ step "the core suites' kernel and answer tests and the smoke tests under qemu"
 # whose answers depend on the kernel: the NEON kernel against the scalar one bit for bit, the
 # reference suites, the watertight and hard sets against the oracle, queries (culled faces come
 # from the kernel's determinant), k nearest, start cells and batches against single rays (one ray
-# at a time on this kernel), at 4,000 random rays a scene (below that the batch test's camera
-# traces fewer rays than it requires); and the scalar suite's kernel test and reference suites at
-# 2,000. Left out: the builder's tests (allocation failures, the parallel build, hostile and far
-# geometry, errors, inspection, scenes) and the batches' allocation count, which do not depend on
-# the kernel; the native build runs them all.
+# at a time on this kernel): the kernels' comparison and the batches at 4,000 random rays a scene
+# (below that the batch test's camera traces fewer rays than it requires), the others at 2,000
+# (the properties above; the native build's 100,000 look for rare wrong answers); and the scalar
+# suite's kernel test and reference suites at 2,000. Left out: the builder's tests (allocation
+# failures, the parallel build, hostile and far geometry, errors, inspection, scenes) and the
+# batches' allocation count, which do not depend on the kernel; the native build runs them all.
+# One ctest run for both suites, the longest tests first.
 kernel_tests='^(kernels: |random triangle soups|height field grids|spheres agree|watertight: |hard sets: |query: |k nearest: every hit of small|cells: a ray started|batch: (coherent|packets|every|culled|scenes|NULL|several)|smoke_|stored_answers)'
 scalar_tests='^scalar: ?(kernels: |random triangle soups|height field grids|spheres agree)'
-KDRT_TEST_RAYS=4000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$kernel_tests"
-KDRT_TEST_RAYS=2000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$scalar_tests"
+KDRT_TEST_RAYS=2000 ctest --test-dir "$build" -j2 --output-on-failure --no-tests=error -R "$kernel_tests|$scalar_tests"
 
 if [[ -f tests/platforms/answers.c ]]; then
   step "the stored answers (tests/platforms/answers.txt) and saved trees (answers.kdrt), NEON and scalar"
   # answers.c checks the file with every kernel the build has: here the default (NEON) and
   # KDRT_BUILD_SCALAR_KERNEL; the KDRT_NO_SIMD build has the scalar kernel alone. Then it loads
   # the trees saved on x86-64 beside it and checks them the same way.
-  "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" tests/platforms/answers.c -o "$objects/answers" -lm
-  "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" -DKDRT_NO_SIMD tests/platforms/answers.c -o "$objects/answers-no-simd" -lm
+  # The two builds at once, then their runs one after the other (each prints its lines).
+  "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" tests/platforms/answers.c -o "$objects/answers" -lm &
+  "${compiler_c[@]}" -std=c99 -O2 "${strict[@]}" -DKDRT_NO_SIMD tests/platforms/answers.c -o "$objects/answers-no-simd" -lm &
+  answers_failed=0
+  wait -n || answers_failed=1
+  wait -n || answers_failed=1
+  if (( answers_failed )); then echo "aarch64.sh: tests/platforms/answers.c did not compile cleanly (above)" >&2; exit 1; fi
   "${qemu[@]}" "$objects/answers" tests/platforms/answers.txt
   "${qemu[@]}" "$objects/answers-no-simd" tests/platforms/answers.txt
 fi
