@@ -8102,30 +8102,19 @@ typedef struct kdrt__point_todo {
     uint32_t node;
 } kdrt__point_todo;
 
-/* The closest-point walk's queue holds this many nodes (a heap; more are rare: see
+/* The closest-point walk's queue holds this many nodes (more are rare: see
    kdrt__closest_walk_body); at least KDRT_MAX_DEPTH + 1, the stack of its depth-first form. */
 #define KDRT__POINT_QUEUE 128
 
-/* todo[0, *count) a heap by box2 (the least at 0): e added, or the least taken out to *e. */
-static KDRT__FORCEINLINE void kdrt__point_push(kdrt__point_todo *todo, uint32_t *count,
-                                               const kdrt__point_todo *e)
+/* todo[0, *count) in decreasing box2, the nearest last (taken out from the end): e put in its
+   place, found from the end. A node's farther child, queued on the way down, is mostly nearer
+   than those waiting, so this costs a comparison or two, less than a heap's sifting. */
+static KDRT__FORCEINLINE void kdrt__point_queue(kdrt__point_todo *todo, uint32_t *count,
+                                                const kdrt__point_todo *e)
 {
     uint32_t i = (*count)++;
-    while (i > 0 && todo[(i - 1) / 2].box2 > e->box2) todo[i] = todo[(i - 1) / 2], i = (i - 1) / 2;
+    for (; i > 0 && todo[i - 1].box2 < e->box2; --i) todo[i] = todo[i - 1];
     todo[i] = *e;
-}
-static KDRT__FORCEINLINE void kdrt__point_pop(kdrt__point_todo *todo, uint32_t *count,
-                                              kdrt__point_todo *e)
-{
-    const kdrt__point_todo *last = &todo[--*count];
-    uint32_t i = 0, c;
-    *e = todo[0];
-    while ((c = 2 * i + 1) < *count) {
-        c += c + 1 < *count && todo[c + 1].box2 < todo[c].box2;
-        if (!(todo[c].box2 < last->box2)) break;
-        todo[i] = todo[c], i = c;
-    }
-    todo[i] = *last;
 }
 
 /* The margin of the walks' pruning: a node or a triangle is left out only when its distance,
@@ -8469,23 +8458,23 @@ static KDRT__FORCEINLINE int kdrt__box_near(double box2, int plain, double scale
     return !((sqrt(box2) * scale - slop) * KDRT__PRUNE_SLACK > best);
 }
 
-/* One tree's walk for a closest-point query, best first: the nodes waiting in a heap by their
-   boxes' distances from the point, the nearest taken out next, its nearer child entered at once
-   (at the same distance) and the farther one queued with its distances along the axes (the split
-   axis's from the split plane, the others its parent's: the box distance as kdrt__box_distance
-   finds it, bit for bit). A node is skipped when its distance (in the tree's space, times scale,
-   less slop: a lower bound of the world distance of any triangle it holds, CLOSEST POINT AND
-   OVERLAP) exceeds the best so far, and so is everything still queued once the nearest is. When
-   the queue is full (KDRT__POINT_QUEUE: deep trees seen from far away) a node is left out and,
-   once the queue is done, the walk starts again from the root depth first with the best so far
-   (its stack bounded by the depth). Its triangles get key and instance; mask against the parts'
-   masks (a scene's mesh tree: triangles compared as the tree numbers them, which is the
-   (geometry ID, triangle) order). A tree's own triangles (no instance) are pruned a leaf block
-   at a time by their boxes' distances and their supporting-plane bounds (kdrt__block_bounds, 8
-   lanes at once with AVX2 when avx2 is set); an instance's, carried into the world one by one,
-   by their world boxes. Which triangles are measured, and in which order, changes the work,
-   never the answer: the best is the first in the (distance, key, triangle) order whatever the
-   order it is offered in. */
+/* One tree's walk for a closest-point query, best first: the nodes waiting in a queue ordered
+   by their boxes' distances from the point (kdrt__point_queue), the nearest taken out next, its
+   nearer child entered at once (at the same distance) and the farther one queued with its
+   distances along the axes (the split axis's from the split plane, the others its parent's: the
+   box distance as kdrt__box_distance finds it, bit for bit). A node is skipped when its distance
+   (in the tree's space, times scale, less slop: a lower bound of the world distance of any
+   triangle it holds, CLOSEST POINT AND OVERLAP) exceeds the best so far, and so is everything
+   still queued once the nearest is. When the queue is full (KDRT__POINT_QUEUE: a point about as
+   far from most of a fine mesh) a node is left out and, once the queue is done, the walk starts
+   again from the root depth first with the best so far (its stack bounded by the depth). Its
+   triangles get key and instance; mask against the parts' masks (a scene's mesh tree: triangles
+   compared as the tree numbers them, which is the (geometry ID, triangle) order). A tree's own
+   triangles (no instance) are pruned a leaf block at a time by their boxes' distances and their
+   supporting-plane bounds (kdrt__block_bounds), and with avx2 set, 8 lanes pruned and 4 measured
+   at once; an instance's, carried into the world one by one, by their world boxes. Which
+   triangles are measured, and in which order, changes the work, never the answer: the best is
+   the first in the (distance, key, triangle) order whatever the order it is offered in. */
 static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, const kdrt__instance *in,
                                                       const double y[3], const float q[3],
                                                       double scale, double slop, uint32_t mask,
@@ -8510,8 +8499,6 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
             if (!left_out) return;
             best_first = left_out = 0; /* again, depth first: see above */
             at = root;
-        } else if (best_first) {
-            kdrt__point_pop(todo, &queued, &at);
         } else {
             at = todo[--queued];
         }
@@ -8537,7 +8524,7 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                     KDRT_ASSERT(queued < KDRT_MAX_DEPTH + 1);
                     todo[queued++] = far;
                 } else if (queued < KDRT__POINT_QUEUE) {
-                    kdrt__point_push(todo, &queued, &far);
+                    kdrt__point_queue(todo, &queued, &far);
                 } else {
                     left_out = 1;
                 }
