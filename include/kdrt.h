@@ -566,7 +566,9 @@
      (1 - u - v) p0 + u p1 + v p2 on it, rounded to float inside its corners' box. The walk
      visits nodes nearest first (a queue ordered by their boxes' distances) and skips nodes and
      triangles whose boxes, or whose corners seen along the direction of the best point so far,
-     lie farther than the best so far, with a margin of 2^-40 that rounding cannot cross. With
+     lie farther than the best so far, with a margin that rounding cannot cross (2^-40 of the
+     distance and 2^-43 of the farthest corner of the tree's box: the error of a sliver's
+     distance grows with its far corner, and none that could tie or win is left out). With
      AVX2 and FMA it measures the triangles left in a block 4 at a time, by the same operations
      as the scalar kernel, so with the same answers bit for bit.
      Boxes are decided exactly: the separating axis test of the triangle and the box (the box's
@@ -577,7 +579,9 @@
      triangle touching the box at a corner, along an edge or in a face meets it; one a float
      beyond it does not. Balls: a corner in the ball decides exactly (|p - c|^2 <= r^2 summed
      exactly), else the distance above is compared with the radius, so only an edge or a face
-     within that bound of the sphere may go either way.
+     within that bound of the sphere may go either way; a triangle must also meet the ball's box
+     (centre +- radius rounded outwards, decided exactly as for boxes), so that every tree
+     reports what max_leaf_size = 0 reports.
      Scenes: kdrt_scene_closest_point() and kdrt_scene_overlap_box() / _sphere() take a mask (as
      kdrt_query.mask: enabled geometries sharing a bit with it) and measure in the world. Ties
      go to the lower geometry ID, then the lower triangle; a report names the geometry, the
@@ -8485,8 +8489,22 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
     uint32_t queued = 0, i, lane;
     int best_first = 1, left_out = 0, a;
     const int check_mask = !tree->masks_full, plain = scale == 1.0 && slop == 0.0;
+    double reach = 0.0, margin;
     (void)avx2;
     if (tree->stats.triangles == 0) return;
+    /* A measured distance may be off by 2^-44 of the distance from q to the triangle's farthest
+       corner (CLOSEST POINT AND OVERLAP), far more than its own rounding for a sliver with a far
+       corner: nothing is pruned unless it lies beyond the best by more than 2^-43 of the
+       farthest corner of the tree's box (the instance's world box), so that a triangle whose
+       measured distance could tie or win is always measured, whatever the tree. */
+    for (a = 0; a < 3; ++a) {
+        const double lo = in ? in->box.min[a] : tree->bounds.min[a];
+        const double hi = in ? in->box.max[a] : tree->bounds.max[a];
+        const double x = in ? (double)q[a] : y[a];
+        const double f = fabs(x - lo) > fabs(x - hi) ? fabs(x - lo) : fabs(x - hi);
+        reach += f * f;
+    }
+    margin = 1.1368683772161603e-13 /* 2^-43 */ * sqrt(reach);
     root.node = 0;
     for (a = 0; a < 3; ++a) {
         const double lo = tree->bounds.min[a], hi = tree->bounds.max[a];
@@ -8502,7 +8520,7 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
         } else {
             at = todo[--queued];
         }
-        if (!kdrt__box_near(at.box2, plain, scale, slop, best->distance)) {
+        if (!kdrt__box_near(at.box2, plain, scale, slop, best->distance + margin)) {
             if (best_first) queued = 0; /* the rest are no nearer */
             continue;
         }
@@ -8518,7 +8536,7 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                 far.box2 = 0.0 + far.off[0] * far.off[0] + far.off[1] * far.off[1] + far.off[2] * far.off[2];
                 far.node = below ? kdrt__node_above(n) : at.node + 1;
                 at.node = below ? at.node + 1 : kdrt__node_above(n);
-                if (!kdrt__box_near(far.box2, plain, scale, slop, best->distance)) {
+                if (!kdrt__box_near(far.box2, plain, scale, slop, best->distance + margin)) {
                     /* not worth queueing */
                 } else if (!best_first) {
                     KDRT_ASSERT(queued < KDRT_MAX_DEPTH + 1);
@@ -8542,11 +8560,11 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
 #ifdef KDRT__AVX2
                     if (avx2)
                         left = kdrt__block_bounds_avx2(block, lanes, q, y, best->w, w_length,
-                                                       best->distance, box2);
+                                                       best->distance + margin, box2);
                     else
 #endif
                         left = kdrt__block_bounds(block, lanes, q, y, best->w, w_length,
-                                                  best->distance, box2);
+                                                  best->distance + margin, box2);
 #ifdef KDRT__AVX2
                     if (avx2) { /* the lanes left in each half measured 4 at a time */
                         uint32_t half;
@@ -8576,7 +8594,8 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                         uint32_t id;
                         int k;
                         lane = kdrt__ctz(left), id = block->id[lane];
-                        if (box2[lane] > best->distance * best->distance) continue; /* nearer since */
+                        if (box2[lane] > (best->distance + margin) * (best->distance + margin))
+                            continue; /* a nearer one since */
                         if (check_mask && !(kdrt__part_of(&tree->meshes, id)->mask & mask)) continue;
                         for (k = 0; k < 3; ++k)
                             for (a = 0; a < 3; ++a) world[k][a] = block->corner[3 * k + a][lane];
@@ -8604,7 +8623,7 @@ static KDRT__FORCEINLINE void kdrt__closest_walk_body(const kdrt_tree *tree, con
                         d = q[a] < tlo ? tlo - q[a] : (q[a] > thi ? q[a] - thi : 0.0);
                         d2 += d * d;
                     }
-                    if (sqrt(d2) * KDRT__PRUNE_SLACK > best->distance) continue;
+                    if (sqrt(d2) * KDRT__PRUNE_SLACK > best->distance + margin) continue;
                     d = kdrt__point_triangle(world, q, &u, &v);
                     kdrt__closest_offer(best, d, u, v, key, id, in, world);
                 }
@@ -8708,6 +8727,16 @@ typedef struct kdrt__overlap_query {
     uint64_t count;
     int stopped;
 } kdrt__overlap_query;
+
+/* 1 when the triangle c's corners all lie in the box [lo, hi]. */
+static int kdrt__corners_within(float c[3][3], const float lo[3], const float hi[3])
+{
+    int k, a;
+    for (k = 0; k < 3; ++k)
+        for (a = 0; a < 3; ++a)
+            if (!(c[k][a] >= lo[a] && c[k][a] <= hi[a])) return 0;
+    return 1;
+}
 
 /* 1 when the closed boxes [alo, ahi] and [blo, bhi] meet. */
 static int kdrt__boxes_meet(const float alo[3], const float ahi[3], const float blo[3],
@@ -8826,9 +8855,14 @@ static void kdrt__overlap_walk(const kdrt_tree *tree, const kdrt__instance *in, 
                 bhi[a] = qhi[a] < bhi[a] ? qhi[a] : bhi[a];
             }
             if (!kdrt__boxes_meet(blo, bhi, lo, hi)) continue;
-            meets = query->sphere ? kdrt__finite(query->radius)
-                                        ? kdrt__triangle_ball(world, query->center, query->radius)
-                                        : 1
+            /* A ball's triangle also meets its box: the ball's test may take one within its
+               error bound beyond the sphere, and only what meets the box is sure to be found
+               in a leaf the walk reaches, whatever the tree (every tree reports what leaf size 0
+               reports). Exact, and only where the triangle's box is not within the box. */
+            meets = query->sphere ? (!kdrt__finite(query->radius) ||
+                                     kdrt__triangle_ball(world, query->center, query->radius)) &&
+                                        (kdrt__corners_within(world, query->lo, query->hi) ||
+                                         kdrt__triangle_box(world, query->lo, query->hi))
                                   : kdrt__triangle_box(world, query->lo, query->hi);
             if (!meets) continue;
             /* Within the leaf's box, away from every split face: no other leaf's box meets
