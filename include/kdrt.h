@@ -7913,14 +7913,16 @@ static int kdrt__orient3d(const float a[3], const float b[3], const float c[3], 
 static int kdrt__triangle_box(float p[3][3], const float lo[3], const float hi[3])
 {
     float vmin[3], vmax[3];
-    int a, i;
+    int a, i, within = 1;
     for (a = 0; a < 3; ++a) {
         const float mn = p[0][a] < p[1][a] ? (p[0][a] < p[2][a] ? p[0][a] : p[2][a])
                                            : (p[1][a] < p[2][a] ? p[1][a] : p[2][a]);
         const float mx = p[0][a] > p[1][a] ? (p[0][a] > p[2][a] ? p[0][a] : p[2][a])
                                            : (p[1][a] > p[2][a] ? p[1][a] : p[2][a]);
         if (mn > hi[a] || mx < lo[a]) return 0;
+        within &= mn >= lo[a] && mx <= hi[a];
     }
+    if (within) return 1; /* every corner in the box */
     for (a = 0; a < 3; ++a) {
         /* n[a] = (b - a)_u (c - a)_w - (b - a)_w (c - a)_u, multiplied out */
         const int u = (a + 1) % 3, w = (a + 2) % 3;
@@ -8728,16 +8730,6 @@ typedef struct kdrt__overlap_query {
     int stopped;
 } kdrt__overlap_query;
 
-/* 1 when the triangle c's corners all lie in the box [lo, hi]. */
-static int kdrt__corners_within(float c[3][3], const float lo[3], const float hi[3])
-{
-    int k, a;
-    for (k = 0; k < 3; ++k)
-        for (a = 0; a < 3; ++a)
-            if (!(c[k][a] >= lo[a] && c[k][a] <= hi[a])) return 0;
-    return 1;
-}
-
 /* 1 when the closed boxes [alo, ahi] and [blo, bhi] meet. */
 static int kdrt__boxes_meet(const float alo[3], const float ahi[3], const float blo[3],
                             const float bhi[3])
@@ -8858,12 +8850,10 @@ static void kdrt__overlap_walk(const kdrt_tree *tree, const kdrt__instance *in, 
             /* A ball's triangle also meets its box: the ball's test may take one within its
                error bound beyond the sphere, and only what meets the box is sure to be found
                in a leaf the walk reaches, whatever the tree (every tree reports what leaf size 0
-               reports). Exact, and only where the triangle's box is not within the box. */
-            meets = query->sphere ? (!kdrt__finite(query->radius) ||
-                                     kdrt__triangle_ball(world, query->center, query->radius)) &&
-                                        (kdrt__corners_within(world, query->lo, query->hi) ||
-                                         kdrt__triangle_box(world, query->lo, query->hi))
-                                  : kdrt__triangle_box(world, query->lo, query->hi);
+               reports). */
+            meets = (!query->sphere || !kdrt__finite(query->radius) ||
+                     kdrt__triangle_ball(world, query->center, query->radius)) &&
+                    kdrt__triangle_box(world, query->lo, query->hi);
             if (!meets) continue;
             /* Within the leaf's box, away from every split face: no other leaf's box meets
                it. Else the first leaf in node order that refers to it reports it. */
