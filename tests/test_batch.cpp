@@ -676,7 +676,9 @@ TEST_CASE("batch: coherent and incoherent rays on generated meshes, bit for bit 
         }
     for (size_t k = 0; k < kernels.size(); ++k) WARN("batch: " << total[k] << " rays on the " << kernel_name(kernels[k]));
     WARN("batch: in " << seconds_since(start) << " s");
-    CHECK(total[0] >= 10 * kt::reference_ray_count());
+    // About 6 rays a pixel on each of the 3 meshes (rounding the side down to whole tiles takes
+    // fewer than 12 times KDRT_TEST_RAYS when that is small, as under qemu).
+    CHECK(total[0] >= 16 * size_t(side) * side);
 }
 
 TEST_CASE("batch: coherent and incoherent rays on the shared meshes", "[batch][meshes]") {

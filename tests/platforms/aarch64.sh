@@ -18,46 +18,46 @@ start=$SECONDS
 step() { printf '=== %s (at %ds)\n' "$*" "$((SECONDS - start))"; }
 
 step "configure and build the core suites for aarch64"
-# Under qemu, the tests below run at KDRT_TEST_RAYS=2000 random rays a scene, but the kernels'
-# comparison and the batches at 4,000 (below that the batch test's camera traces fewer rays than
-# it requires), and each gets its seconds under qemu on 2 cores as its COST, so that ctest starts
-# the longest first and one run keeps both cores busy to the end: a file of properties that ctest
-# reads once it has listed the tests (KDRT_TEST_PROPERTIES_FILE, tests/CMakeLists.txt).
+# Under qemu, the tests below run at KDRT_TEST_RAYS=2000 random rays a scene, and each gets its
+# seconds under qemu on 2 cores as its COST, so that ctest starts the longest first and one run
+# keeps both cores busy to the end: a file of properties that ctest reads once it has listed the
+# tests (KDRT_TEST_PROPERTIES_FILE, tests/CMakeLists.txt).
 mkdir -p "$build"
 properties="$(cd "$build" && pwd)/qemu-test-properties.cmake"
 {
-  echo "# Written by tests/platforms/aarch64.sh: the costs of the tests it runs under qemu, and ray counts."
-  while IFS='|' read -r cost rays name; do
-    environment=""
-    [[ -n $rays ]] && environment=" ENVIRONMENT KDRT_TEST_RAYS=$rays"
-    echo "set_tests_properties([==[$name]==] PROPERTIES COST $cost$environment)"
+  echo "# Written by tests/platforms/aarch64.sh: the costs of the tests it runs under qemu."
+  while IFS='|' read -r cost name; do
+    echo "set_tests_properties([==[$name]==] PROPERTIES COST $cost)"
   done <<'TESTS'
-44|4000|kernels: the SIMD and scalar kernels answer every ray bit for bit alike
-36|4000|batch: every builder, quality, intersector and leaf size, and empty trees
-16|4000|batch: culled faces, masks and filters give the single-ray answers
-8|4000|batch: coherent and incoherent rays on generated meshes, bit for bit as one by one
-7|4000|batch: packets with an odd ray, mixed signs, special parts, per-lane ranges, split planes and hints
-5|4000|batch: scenes of meshes, and of meshes and instances, as the single scene calls
-1|4000|batch: several threads batching on one tree and one scene at once get the single-ray answers
-1|4000|batch: NULL arguments give misses and 0, and count 0 writes nothing
-1|4000|batch: coherent and incoherent rays on the shared meshes
-16||hard sets: every answer agrees with the oracle and every leaf size answers as leaf size 0
-13||k nearest: every hit of small meshes, against a tree per triangle
-12||spheres agree with the reference
-12||scalar:spheres agree with the reference
-11||watertight: no ray aimed at a vertex or an edge slips through a closed mesh
-7||scalar:random triangle soups agree with the reference
-6||scalar:height field grids agree with the reference
-6||query: culled faces are those the double-precision normal says, both tests
-5||random triangle soups agree with the reference
-5||cells: a ray started from any cell gets the root walk's answer, bit for bit
-4||height field grids agree with the reference
+34|batch: every builder, quality, intersector and leaf size, and empty trees
+32|kernels: the SIMD and scalar kernels answer every ray bit for bit alike
+17|batch: culled faces, masks and filters give the single-ray answers
+16|hard sets: every answer agrees with the oracle and every leaf size answers as leaf size 0
+16|scalar:spheres agree with the reference
+15|spheres agree with the reference
+14|k nearest: every hit of small meshes, against a tree per triangle
+12|watertight: no ray aimed at a vertex or an edge slips through a closed mesh
+9|query: culled faces are those the double-precision normal says, both tests
+7|cells: a ray started from any cell gets the root walk's answer, bit for bit
+6|batch: coherent and incoherent rays on generated meshes, bit for bit as one by one
+6|batch: packets with an odd ray, mixed signs, special parts, per-lane ranges, split planes and hints
+6|scalar:random triangle soups agree with the reference
+5|batch: scenes of meshes, and of meshes and instances, as the single scene calls
+5|scalar:height field grids agree with the reference
+5|random triangle soups agree with the reference
+4|height field grids agree with the reference
+1|batch: several threads batching on one tree and one scene at once get the single-ray answers
+1|batch: NULL arguments give misses and 0, and count 0 writes nothing
+1|batch: coherent and incoherent rays on the shared meshes
 TESTS
 } >"$properties"
 # The implementation (C) at -O2, where the kernels are; the suites (C++) at -O1, which builds in
-# far less time than -O3 and runs them about as fast under qemu.
+# far less time than -O3 and runs them about as fast under qemu; and of the core suites only the
+# files whose tests run below (KDRT_CORE_SUITES; test_kernels.cpp is always built).
+suites="test_reference.cpp;test_watertight.cpp;test_queries.cpp;test_cells.cpp;test_batch.cpp"
 cmake -S . -B "$build" -G Ninja -DCMAKE_TOOLCHAIN_FILE=tests/platforms/aarch64-toolchain.cmake \
-  -DKDRT_CORE_TESTS_ONLY=ON -DCMAKE_BUILD_TYPE=Release -DKDRT_TEST_PROPERTIES_FILE="$properties" \
+  -DKDRT_CORE_TESTS_ONLY=ON -DKDRT_CORE_SUITES="$suites" -DCMAKE_BUILD_TYPE=Release \
+  -DKDRT_TEST_PROPERTIES_FILE="$properties" \
   -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG" -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" >/dev/null
 cmake --build "$build" -j2
 
@@ -124,12 +124,12 @@ step "the core suites' kernel and answer tests and the smoke tests under qemu"
 # whose answers depend on the kernel: the NEON kernel against the scalar one bit for bit, the
 # reference suites, the watertight and hard sets against the oracle, queries (culled faces come
 # from the kernel's determinant), k nearest, start cells and batches against single rays (one ray
-# at a time on this kernel): the kernels' comparison and the batches at 4,000 random rays a scene
-# (below that the batch test's camera traces fewer rays than it requires), the others at 2,000
-# (the properties above; the native build's 100,000 look for rare wrong answers); and the scalar
-# suite's kernel test and reference suites at 2,000. Left out: the builder's tests (allocation
-# failures, the parallel build, hostile and far geometry, errors, inspection, scenes) and the
-# batches' allocation count, which do not depend on the kernel; the native build runs them all.
+# at a time on this kernel), at 2,000 random rays a scene (the native build's 100,000 look for
+# rare wrong answers); and the scalar suite's kernel test and reference suites. Left out: the
+# builder's tests (allocation failures, the parallel build, hostile and far geometry, errors,
+# inspection, scenes), saving and loading, closest point and overlap (whose code has no NEON
+# kernel) and the batches' allocation count, which do not depend on the kernel: their files are
+# not built, and the native build runs them all.
 # One ctest run for both suites, the longest tests first.
 kernel_tests='^(kernels: |random triangle soups|height field grids|spheres agree|watertight: |hard sets: |query: |k nearest: every hit of small|cells: a ray started|batch: (coherent|packets|every|culled|scenes|NULL|several)|smoke_|stored_answers)'
 scalar_tests='^scalar: ?(kernels: |random triangle soups|height field grids|spheres agree)'
