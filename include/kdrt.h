@@ -9013,6 +9013,9 @@ KDRT_API kdrt_result kdrt_scene_closest_point(const kdrt_scene *scene, const flo
         kdrt__level_near stack[KDRT__LEVEL_STACK];
         uint32_t sp = 0, node = 0, i;
         int done = 0;
+        /* No margin for the reach of a far corner here (as the tree walk's): an instance's world
+           box is widened by 2^-20 of its extent (kdrt__place_instance), far more than 2^-44 of
+           the reach of any triangle in it. */
         if (kdrt__box_distance(y, scene->top.root.min, scene->top.root.max) * KDRT__PRUNE_SLACK >
             best.distance)
             done = 1;

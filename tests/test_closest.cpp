@@ -586,6 +586,49 @@ TEST_CASE("closest point: ties go to the lower triangle, then the lower geometry
         }
 }
 
+TEST_CASE("closest point: a scene's top level keeps an instance whose sliver measures nearer than its box", "[closest][scene]") {
+    // A sliver 2^-100 across with a corner 1.6e5 away: from q its measured distance is 0 (its
+    // error grows with the far corner, CLOSEST POINT AND OVERLAP), its box 2^-100 away. Beside it
+    // a small triangle 2^-101 from q, measured exactly. One tree of both names the sliver; so
+    // must a scene of the small triangle as a mesh and the sliver's tree as an instance, though
+    // the best the mesh gives is nearer than the sliver's box: the top level prunes by instances'
+    // world boxes, widened by far more than such an error.
+    const float q[3] = {-0x1p-100f, 0x1.8p-101f, -0x1.cp-100f};
+    const float sliver[] = {-0x1p-100f, -0x1p-102f, -0x1.cp-100f, -0x1p-100f, -0x1.cp-100f, -0x1.cp-100f,
+                            0x1p-101f,  -0x1.36f852p+17f, -0x1p-102f};
+    const float x = q[0] + 0x1p-101f;  // the small triangle's plane, x = -2^-101
+    const float small[] = {x, q[1] - 0x1p-100f, q[2] - 0x1p-100f, x, q[1] + 0x1p-100f, q[2] - 0x1p-100f,
+                           x, q[1], q[2] + 0x1p-100f};
+    float both[18];
+    std::copy(sliver, sliver + 9, both);
+    std::copy(small, small + 9, both + 9);
+    const auto view_of = [](const float *pos, uint32_t triangles) {
+        kdrt_triangles v{};
+        v.positions = pos, v.vertex_count = 3 * triangles, v.triangle_count = triangles;
+        return v;
+    };
+    const kdrt_triangles sliver_view = view_of(sliver, 1), small_view = view_of(small, 1), both_view = view_of(both, 2);
+    kdrt_tree *raw = nullptr;
+    REQUIRE(kdrt_tree_build(&both_view, nullptr, &raw, nullptr) == KDRT_SUCCESS);
+    kt::TreePtr tree_of_both(raw);
+    kdrt_closest expected;
+    REQUIRE(kdrt_closest_point(tree_of_both.get(), q, INFINITY, &expected) == KDRT_SUCCESS);
+    REQUIRE(expected.triangle == 0);  // the sliver, measured nearer than the small triangle
+    REQUIRE(expected.distance < 0x1p-101f);
+    REQUIRE(kdrt_tree_build(&sliver_view, nullptr, &raw, nullptr) == KDRT_SUCCESS);
+    kt::TreePtr sliver_tree(raw);
+    const kdrt_geometry geos[] = {kdrt_mesh_geometry(1, &small_view), kdrt_instance_geometry(2, sliver_tree.get(), nullptr)};
+    kdrt_scene *sraw = nullptr;
+    REQUIRE(kdrt_scene_build(geos, 2, nullptr, &sraw, nullptr) == KDRT_SUCCESS);
+    std::unique_ptr<kdrt_scene, SceneFree> scene(sraw);
+    kdrt_closest c;
+    REQUIRE(kdrt_scene_closest_point(scene.get(), q, INFINITY, 0xFFFFFFFFu, &c) == KDRT_SUCCESS);
+    CHECK(c.geometry == 2);
+    CHECK(c.instance == 2);
+    CHECK(c.triangle == 0);
+    CHECK(c.distance == expected.distance);
+}
+
 TEST_CASE("closest point: distances beyond float's range", "[closest]") {
     // A triangle near -3e38 and a point at +3e38: about 6e38 apart, beyond the largest float.
     const float big = 3e38f, pos[] = {-big, -big, 0, -big, 0, 0, -big, -big, 1e38f};

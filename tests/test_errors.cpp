@@ -839,14 +839,23 @@ TEST_CASE("alloc: failing any one allocation of a build frees everything", "[err
         for (const kt::Builder &builder : kt::kSahBuilders) {
             kdrt_build_options o = options_with_leaf(4);
             builder.apply(o);
-            o.scheduler.run = [](void *, kdrt_task_fn task, void *data, uint32_t count) {
+            // Reversed, and counting the most tasks handed out at once (in *user).
+            o.scheduler.run = [](void *user, kdrt_task_fn task, void *data, uint32_t count) {
+                uint32_t &most = *static_cast<uint32_t *>(user);
+                most = std::max(most, count);
                 for (uint32_t i = count; i-- > 0;) task(data, i);
             };
+            uint32_t most_tasks = 0;
+            o.scheduler.user = &most_tasks;
             INFO(builder.name << " in tasks, " << triangles << " triangles");
             fail_each_allocation(sv, o, KDRT_SUCCESS, KDRT_ERROR_OUT_OF_MEMORY, rays, first);
+            CHECK(most_tasks >= 2);
         }
     };
-    in_tasks(9000, 19, 0);  // large enough for the SAH build to cut its top into tasks
+    // Large enough for the SAH build to cut its top into tasks (nodes of more than 4,096
+    // references: its two halves), small enough that failing each of its allocations in turn,
+    // a build each, stays short.
+    in_tasks(5000, 19, 0);
     // Large enough for the top's nodes to be binned (HIGH: sorted) and the triangles prepared
     // and packed in chunks on the scheduler: the first 40 allocations, where those happen.
     in_tasks(20000, 20, 40);
