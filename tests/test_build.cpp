@@ -59,8 +59,9 @@ TEST_CASE("build: the parallel SAH build gives the same tree on any scheduler", 
         const char *name;
         common::Mesh mesh;
     };
-    Scene scenes[] = {{"sphere, 40,000 triangles", kt::sphere(100, 200, 1.0)},
-                      {"random soup, 30,000 triangles", kt::random_soup(30000, 5)},
+    // Above 20,000 triangles (checked below), the top is cut into tasks and binned in chunks.
+    Scene scenes[] = {{"sphere, 22,500 triangles", kt::sphere(75, 150, 1.0)},
+                      {"random soup, 22,000 triangles", kt::random_soup(22000, 5)},
                       {"random soup, 300 triangles (one task)", kt::random_soup(300, 6)}};
     for (Scene &scene : scenes) {
         for (const kt::Builder &builder : kt::kSahBuilders)
