@@ -8124,8 +8124,9 @@ static KDRT__FORCEINLINE void kdrt__point_queue(kdrt__point_todo *todo, uint32_t
 }
 
 /* The margin of the walks' pruning: a node or a triangle is left out only when its distance,
-   less 2^-40 of it, exceeds the best so far, so that rounding (a few ulps of double) never
-   prunes a triangle whose computed distance would tie or win. */
+   less 2^-40 of it, exceeds the best so far (in a tree's walk, the best plus a margin for the
+   reach of a far corner: kdrt__closest_walk_body), so that rounding never prunes a triangle
+   whose computed distance would tie or win. */
 #define KDRT__PRUNE_SLACK (1.0 - 9.094947017729282e-13)
 
 /* The distance from y to the box [lo, hi], in double. */
@@ -9013,9 +9014,10 @@ KDRT_API kdrt_result kdrt_scene_closest_point(const kdrt_scene *scene, const flo
         kdrt__level_near stack[KDRT__LEVEL_STACK];
         uint32_t sp = 0, node = 0, i;
         int done = 0;
-        /* No margin for the reach of a far corner here (as the tree walk's): an instance's world
-           box is widened by 2^-20 of its extent (kdrt__place_instance), far more than 2^-44 of
-           the reach of any triangle in it. */
+        /* No margin for the reach of a far corner here (as the tree walk's): a triangle's error
+           is 2^-44 of its far corner's distance, which is at most its own distance (covered by
+           KDRT__PRUNE_SLACK) plus its instance's extent, and an instance's world box is widened
+           by 2^-20 of its extent (kdrt__place_instance), far more than 2^-44 of it. */
         if (kdrt__box_distance(y, scene->top.root.min, scene->top.root.max) * KDRT__PRUNE_SLACK >
             best.distance)
             done = 1;

@@ -123,12 +123,12 @@ step "the core suites' kernel and answer tests and the smoke tests under qemu"
 # reference suites, the watertight and hard sets against the oracle, queries (culled faces come
 # from the kernel's determinant), k nearest, start cells and batches against single rays (one ray
 # at a time on this kernel: the coherent, packet and scene batches, not every builder's or every
-# query flag's, which the native build compares), at 2,000 random rays a scene (the native build's 100,000 look for
-# rare wrong answers); and the scalar suite's kernel test and reference suites. Left out: the
-# builder's tests (allocation failures, the parallel build, hostile and far geometry, errors,
-# inspection, scenes), saving and loading, closest point and overlap (whose code has no NEON
-# kernel) and the batches' allocation count, which do not depend on the kernel: their files are
-# not built, and the native build runs them all.
+# query flag's, which the native build compares), at 2,000 random rays a scene (the native
+# build's 100,000 look for rare wrong answers); and the scalar suite's kernel test and reference
+# suites. Left out: the builder's tests (allocation failures, the parallel build, hostile and
+# far geometry, errors, inspection, scenes), saving and loading, closest point and overlap (whose
+# code has no NEON kernel) and the batches' allocation count, which do not depend on the kernel:
+# their files are not built, and the native build runs them all.
 # One ctest run for both suites, the longest tests first.
 kernel_tests='^(kernels: |random triangle soups|height field grids|spheres agree|watertight: |hard sets: |query: |k nearest: every hit of small|cells: a ray started|batch: (coherent|packets|scenes|NULL|several)|smoke_|stored_answers)'
 scalar_tests='^scalar: ?(kernels: |random triangle soups|height field grids|spheres agree)'
